@@ -1,0 +1,37 @@
+"""smafl-jax: differentiable system identification for hysteretic, thermally driven artificial muscles.
+
+Models (PyTrees), operators, data loading and metrics are re-exported here;
+the modules behind them are private.  Importing the package enables JAX's
+64-bit mode (identification at float32 is not accurate enough).
+"""
+
+from . import _config  # noqa: F401  (enables x64 first)
+from ._cascade import Cascade
+from ._constraints import POSITIVE_FLOOR, constrain, log_jacobian, positive, positive_mask, unconstrain
+from ._data import Record, file_sha256, load_record
+from ._errors import DataError, UserInputError
+from ._eupi import EUPI, threshold_grid, tilt_grid
+from ._io import (
+    atomic_savefig,
+    atomic_write_csv,
+    atomic_write_json,
+    atomic_write_text,
+    load_model,
+    load_model_file,
+    model_from_dict,
+    model_to_dict,
+    prepare_out_dir,
+    register_model,
+    save_model,
+)
+from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, rmse
+from ._operators import consistent_initial_state, play, play_assoc, play_scan, play_step
+from ._simulate import simulate, simulate_batch
+from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
+
+__version__ = "0.1.0"
+
+# --- identification (issue 3) ---
+# --- bayes (issue 4) ---
+# --- control (issue 5) ---
+# --- diagnosis (issue 6) ---

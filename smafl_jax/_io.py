@@ -1,0 +1,216 @@
+"""Saving and loading models as JSON, and atomic writing of results.
+
+Models are written as human-readable JSON (never pickle):
+``{"type": "Cascade", "thermal": {"type": "JouleThermal", "k1": 0.05, ...}, ...}``.
+A model file is ``{"format": "smafl-model", "version": 1, "model": {...}}``;
+``fit.json`` files carry the same ``"model"`` entry among their metrics, so
+every command that takes a model accepts either.  Other modules make their
+model classes loadable with `register_model`.
+
+All writers go to a temporary file in the target folder and `os.replace` it,
+so an interrupted run never leaves a half-written result behind.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import json
+import math
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ._errors import UserInputError
+
+__all__ = [
+    "register_model",
+    "model_to_dict",
+    "model_from_dict",
+    "save_model",
+    "load_model",
+    "load_model_file",
+    "atomic_write_text",
+    "atomic_write_bytes",
+    "atomic_write_json",
+    "atomic_savefig",
+    "atomic_write_csv",
+    "prepare_out_dir",
+    "to_jsonable",
+]
+
+FORMAT = "smafl-model"
+VERSION = 1
+_REGISTRY: dict[str, type] = {}
+
+
+def register_model(cls):
+    """Class decorator: make an `equinox.Module` model loadable from JSON by its class name."""
+    _REGISTRY[cls.__name__] = cls
+    return cls
+
+
+def to_jsonable(x):
+    """Arrays -> nested lists, numpy scalars -> Python, NaN/inf -> None (strict JSON)."""
+    if isinstance(x, dict):
+        return {str(k): to_jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [to_jsonable(v) for v in x]
+    if isinstance(x, (jnp.ndarray, np.ndarray, np.generic)):
+        return to_jsonable(np.asarray(x).tolist())
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def model_to_dict(model):
+    """Named-field dict of a registered model (recursive)."""
+    if type(model).__name__ not in _REGISTRY:
+        raise UserInputError(f"model type {type(model).__name__} is not registered for saving")
+    out = {"type": type(model).__name__}
+    for f in dataclasses.fields(model):
+        val = getattr(model, f.name)
+        if isinstance(val, eqx.Module):
+            out[f.name] = model_to_dict(val)
+        elif isinstance(val, (tuple, list)) and val and all(isinstance(v, eqx.Module) for v in val):
+            out[f.name] = [model_to_dict(v) for v in val]
+        else:
+            out[f.name] = to_jsonable(val)
+    return out
+
+
+def model_from_dict(d, *, where="model"):
+    """Inverse of `model_to_dict`; errors name the offending entry."""
+    if not isinstance(d, dict) or "type" not in d:
+        raise UserInputError(f"{where}: expected an object with a 'type' entry")
+    name = d["type"]
+    cls = _REGISTRY.get(name)
+    if cls is None:
+        raise UserInputError(f"{where}: unknown model type {name!r}; known: {sorted(_REGISTRY)}")
+    kwargs = {}
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    for key, val in d.items():
+        if key == "type":
+            continue
+        if key not in fields:
+            raise UserInputError(f"{where}: {name} has no field {key!r}; fields are {sorted(fields)}")
+        f = fields[key]
+        if isinstance(val, dict) and "type" in val:
+            kwargs[key] = model_from_dict(val, where=f"{where}.{key}")
+        elif isinstance(val, list) and val and all(isinstance(v, dict) and "type" in v for v in val):
+            kwargs[key] = tuple(model_from_dict(v, where=f"{where}.{key}[{i}]") for i, v in enumerate(val))
+        elif f.metadata.get("static", False):
+            kwargs[key] = tuple(val) if isinstance(val, list) else val
+        else:
+            if val is None:
+                kwargs[key] = None
+                continue
+            arr = np.asarray(val, dtype=np.float64)
+            if not np.all(np.isfinite(arr)):
+                raise UserInputError(f"{where}.{key}: non-finite value in saved parameters")
+            kwargs[key] = jnp.asarray(arr)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as exc:
+        raise UserInputError(f"{where}: cannot build {name}: {exc}") from None
+
+
+def save_model(path, model, **extra):
+    """Write ``model`` (and any JSON-able ``extra`` entries) to ``path`` atomically."""
+    doc = {"format": FORMAT, "version": VERSION, "model": model_to_dict(model)}
+    doc.update(to_jsonable(extra))
+    atomic_write_json(path, doc)
+
+
+def load_model_file(path):
+    """``(model, document)`` from a model file or a ``fit.json``."""
+    path = Path(path)
+    if not path.exists():
+        raise UserInputError(f"{path}: file not found")
+    try:
+        doc = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserInputError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict) or "model" not in doc:
+        raise UserInputError(f"{path}: no 'model' entry; expected a model file or a fit.json")
+    return model_from_dict(doc["model"], where=f"{path}: model"), doc
+
+
+def load_model(path):
+    """The model stored in a model file or ``fit.json``."""
+    return load_model_file(path)[0]
+
+
+# -- atomic output -------------------------------------------------------------
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_bytes(path, data: bytes):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give results normal permissions
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_text(path, text: str):
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_json(path, obj):
+    atomic_write_text(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
+
+
+def atomic_savefig(fig, path, **kwargs):
+    """Save a matplotlib figure atomically (format from the file suffix)."""
+    path = Path(path)
+    buf = io.BytesIO()
+    kwargs.setdefault("dpi", 120)
+    kwargs.setdefault("bbox_inches", "tight")
+    fig.savefig(buf, format=path.suffix.lstrip(".") or "png", **kwargs)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def atomic_write_csv(path, columns: dict, *, fmt="%.10g"):
+    """Write named equal-length 1-D columns as a CSV with a header."""
+    names = list(columns)
+    arrs = [np.asarray(columns[n], dtype=np.float64) for n in names]
+    lengths = {a.shape for a in arrs}
+    if len(lengths) != 1:
+        raise ValueError(f"columns differ in length: { {n: a.shape for n, a in zip(names, arrs)} }")
+    buf = io.StringIO()
+    np.savetxt(buf, np.column_stack(arrs), delimiter=",", header=",".join(names), comments="", fmt=fmt)
+    atomic_write_text(path, buf.getvalue())
+
+
+def prepare_out_dir(out, *, announce=True, stream=None):
+    """Create the output folder; say so when it already holds results that will be replaced."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserInputError(f"{out}: exists and is not a folder")
+    existing = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.exists() else []
+    if existing and announce:
+        shown = ", ".join(existing[:6]) + (" ..." if len(existing) > 6 else "")
+        print(f"note: {out} already holds results ({shown}); files of the same name will be replaced", file=stream or sys.stderr)
+    out.mkdir(parents=True, exist_ok=True)
+    return out

@@ -1,0 +1,35 @@
+"""Strict JAX settings for every test: float64 and no implicit rank promotion."""
+
+import os
+from pathlib import Path
+
+import jax
+import pytest
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_rank_promotion", "raise")
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL_DATA = ROOT.parent / "shared" / "data" / "real"
+DATASETS = ROOT / "datasets"
+
+
+@pytest.fixture
+def real_data():
+    """Folder of real measured records (read in place); skip when a fresh clone lacks it."""
+    path = Path(os.environ.get("SMAFL_REAL_DATA", REAL_DATA))
+    if not path.is_dir():
+        pytest.skip(f"real data folder {path} not present (it lives beside the repo in ../shared/data/real)")
+    return path
+
+
+@pytest.fixture
+def datasets_dir():
+    return DATASETS
+
+
+@pytest.fixture
+def rng():
+    import numpy as np
+
+    return np.random.default_rng(1234)
