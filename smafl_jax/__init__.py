@@ -32,6 +32,7 @@ from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, therm
 __version__ = "0.1.0"
 
 # --- identification (issue 3) ---
+from ._fit import FitResult, as_fit_data, default_trainable, fit, init_linear
 # --- bayes (issue 4) ---
 # --- control (issue 5) ---
 # --- diagnosis (issue 6) ---

@@ -6,6 +6,11 @@ voltage that would hold the thermal state where it is.  At steady state
 ``u_eff`` equals the applied voltage, so in quasi-static conditions the cascade
 is exactly the voltage-domain EUPI identified in the paper (tested), while
 fast drives are low-pass filtered by the thermal lag.
+
+Identifiability: ``theta`` scales with ``k2`` and ``u_eff`` divides it out, so
+the cascade's displacement depends on the thermal time constant ``1/k1`` but
+not on ``k2``.  ``k2`` only has meaning for the Joule model fitted alone
+(``U^2`` -> output, the paper's eq. 7) or for a measured temperature.
 """
 
 from __future__ import annotations
