@@ -34,5 +34,10 @@ __version__ = "0.1.0"
 # --- identification (issue 3) ---
 from ._fit import FitResult, as_fit_data, default_trainable, fit, init_linear
 # --- bayes (issue 4) ---
+from ._bayes import ChainTooShortWarning, Posterior, Prior, SampleRun, default_priors, diagnostics, load_priors, load_run, run_sampler, summarize
 # --- control (issue 5) ---
+from ._control import PID, ClosedLoop, IICompensator, closed_loop_metrics, simulate_closed_loop, sine_reference, step_reference
+from ._sweep import SweepResult, stack_models, sweep
 # --- diagnosis (issue 6) ---
+from ._effects import EFFECT_NAMES, EFFECTS, ExtendedModel  # noqa: E402
+from ._diagnose import diagnose  # noqa: E402

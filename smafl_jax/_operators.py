@@ -26,7 +26,7 @@ import jax.numpy as jnp
 
 from . import _config  # noqa: F401  (x64)
 
-__all__ = ["play_step", "play", "play_scan", "play_assoc", "consistent_initial_state"]
+__all__ = ["play_step", "play", "play_scan", "play_assoc", "play_weighted", "consistent_initial_state"]
 
 
 def _bounds(u, r, alpha):
@@ -61,6 +61,28 @@ def play_scan(u, r, alpha=1.0, y0=None):
 
     _, ys = jax.lax.scan(step, y0, u)
     return ys
+
+
+def play_weighted(u, r, alpha, weights, y0=None):
+    """``play_scan(u, r, alpha, y0) @ weights`` without storing the ``(T, n)`` outputs.
+
+    The weighted sum is taken inside the scan step, so only ``T`` numbers are
+    written instead of ``T * n``: the forward pass of a Prandtl-Ishlinskii
+    model is then compute-bound rather than memory-bound (2-4x faster on CPU
+    for 50-200 operators, see benchmarks/).  Use `play_scan` when the
+    individual operator outputs are needed (e.g. the design matrix).
+    """
+    u, r, alpha, y0 = _prepare(u, r, alpha, y0)
+    weights = jnp.asarray(weights, dtype=jnp.float64)
+    if weights.shape != r.shape:
+        raise ValueError(f"weights must have one entry per operator, shape {r.shape}, got {weights.shape}")
+
+    def step(carry, uk):
+        y, _ = play_step(carry, uk, r, alpha)
+        return y, y @ weights
+
+    _, out = jax.lax.scan(step, y0, u)
+    return out
 
 
 def _compose(first, second):

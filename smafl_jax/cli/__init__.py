@@ -14,7 +14,7 @@ import sys
 from .._errors import UserInputError
 
 # Command modules, in the order `smafl --help` lists them.
-COMMANDS = ["simulate"]
+COMMANDS = ["simulate", "sample", "control", "sweep", "diagnose"]
 
 
 def build_parser():

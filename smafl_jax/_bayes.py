@@ -1,0 +1,670 @@
+"""Bayesian uncertainty for the identified models: log-posterior, vectorised emcee, diagnostics.
+
+The sampled vector is the ravelled PyTree ``(trainable model leaves, noise)``
+in *unconstrained* coordinates (positive fields through softplus, see
+`smafl_jax.constrain`), so the density includes `log_jacobian`.  Priors are
+stated on the physical values, elementwise, and can be overridden from JSON.
+
+Linear gains (``linear=``):
+
+- ``"sample"``: every trainable leaf (thermal k1 and all EUPI gains) is sampled.
+  Exact for the model as written (gains >= 0 respected), but the dimension is
+  ~30 for the default EUPI and the ensemble sampler mixes slowly.
+- ``"marginalise"`` (recommended when the EUPI has many gains): only the
+  nonlinear parameters (k1, noise scale, grids if trained) are sampled; the
+  gains get a Gaussian prior ``N(0, tau^2)`` and are integrated out in closed
+  form (Gaussian noise only).  Exact for *unbounded* gains; the positivity of
+  the play-operator gains is dropped, so use it when the data pin the gains
+  down (the usual case: thousands of samples, tens of gains).  Gains for the
+  predictive draws come from their exact conditional Gaussian.
+- ``"profile"``: gains replaced by their ridge least-squares estimate at each
+  nonlinear point.  Cheapest, but ignores the gains' uncertainty, so intervals
+  on k1 come out too narrow when the gains are poorly determined.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import shutil
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.flatten_util import ravel_pytree
+
+from . import _config  # noqa: F401
+from ._cascade import Cascade
+from ._constraints import constrain, log_jacobian, positive, unconstrain
+from ._errors import UserInputError
+from ._eupi import EUPI
+from ._fit import as_fit_data, default_trainable
+from ._thermal import JouleThermal
+
+__all__ = [
+    "Prior",
+    "Posterior",
+    "SampleRun",
+    "ChainTooShortWarning",
+    "default_priors",
+    "load_priors",
+    "run_sampler",
+    "load_run",
+    "diagnostics",
+    "summarize",
+]
+
+NOISE_MODELS = ("gaussian", "student-t")
+LINEAR_MODES = ("sample", "marginalise", "profile")
+_DISTS = {"normal": ("loc", "scale"), "lognormal": ("loc", "scale"), "halfnormal": ("scale",), "uniform": ("low", "high"), "flat": ()}
+_LOG2PI = math.log(2.0 * math.pi)
+
+
+class ChainTooShortWarning(UserWarning):
+    """The chain is shorter than ~50 autocorrelation times: its error bars are not reliable."""
+
+
+# -- priors -------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Prior:
+    """Elementwise prior on a physical parameter value.
+
+    ``normal(loc, scale)``, ``lognormal(loc, scale)`` (of ``log x``, x > 0),
+    ``halfnormal(scale)`` (x > 0), ``uniform(low, high)``, ``flat`` (improper).
+    """
+
+    dist: str
+    loc: float = 0.0
+    scale: float = 1.0
+    low: float = -math.inf
+    high: float = math.inf
+
+    def __post_init__(self):
+        if self.dist not in _DISTS:
+            raise UserInputError(f"unknown prior distribution {self.dist!r}; choose one of {sorted(_DISTS)}")
+        if "scale" in _DISTS[self.dist] and not (np.all(np.asarray(self.scale) > 0) and np.all(np.isfinite(self.scale))):
+            raise UserInputError(f"{self.dist} prior needs a finite scale > 0, got {self.scale}")
+        if self.dist == "uniform" and not np.all(np.asarray(self.low) < np.asarray(self.high)):
+            raise UserInputError(f"uniform prior needs low < high, got [{self.low}, {self.high}]")
+
+    def logpdf(self, x):
+        """Summed log density of the elements of ``x`` (normalised, except ``flat``)."""
+        x = jnp.asarray(x)
+        d = self.dist
+        if d == "flat":
+            return jnp.asarray(0.0)
+        if d == "normal":
+            z = (x - self.loc) / self.scale
+            return jnp.sum(-0.5 * z * z - jnp.log(self.scale) - 0.5 * _LOG2PI + 0.0 * x)
+        if d == "lognormal":
+            lx = jnp.log(x)
+            z = (lx - self.loc) / self.scale
+            return jnp.sum(-0.5 * z * z - jnp.log(self.scale) - 0.5 * _LOG2PI - lx)
+        if d == "halfnormal":
+            z = x / self.scale
+            return jnp.sum(jnp.where(x >= 0, -0.5 * z * z - jnp.log(self.scale) + 0.5 * math.log(2.0 / math.pi), -jnp.inf))
+        # uniform
+        inside = (x >= self.low) & (x <= self.high)
+        return jnp.sum(jnp.where(inside, -jnp.log(jnp.asarray(self.high) - self.low) + 0.0 * x, -jnp.inf))
+
+    def to_dict(self):
+        return {"dist": self.dist, **{k: _jsonable(getattr(self, k)) for k in _DISTS[self.dist]}}
+
+    @classmethod
+    def from_dict(cls, d, where="prior"):
+        if not isinstance(d, dict) or "dist" not in d:
+            raise UserInputError(f"{where}: expected an object with a 'dist' entry, e.g. {{'dist': 'lognormal', 'loc': -3, 'scale': 1}}")
+        dist = d["dist"]
+        if dist not in _DISTS:
+            raise UserInputError(f"{where}: unknown distribution {dist!r}; choose one of {sorted(_DISTS)}")
+        extra = set(d) - {"dist", *_DISTS[dist]}
+        if extra:
+            raise UserInputError(f"{where}: {dist} takes {list(_DISTS[dist])}, not {sorted(extra)}")
+        missing = [k for k in _DISTS[dist] if k not in d]
+        if missing:
+            raise UserInputError(f"{where}: {dist} prior needs {missing}")
+        kw = {}
+        for k in _DISTS[dist]:
+            try:
+                val = float(d[k])
+            except (TypeError, ValueError):
+                raise UserInputError(f"{where}.{k}: expected a number, got {d[k]!r}") from None
+            kw[k] = val
+        return cls(dist, **kw)
+
+
+def _jsonable(x):
+    return float(x) if np.ndim(x) == 0 else np.asarray(x).tolist()
+
+
+def load_priors(path):
+    """``{parameter name: Prior}`` from a JSON file ``{"thermal.k1": {"dist": ..., ...}, ...}``."""
+    path = Path(path)
+    if not path.exists():
+        raise UserInputError(f"{path}: priors file not found")
+    try:
+        doc = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserInputError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise UserInputError(f"{path}: expected an object mapping parameter names to priors")
+    doc = doc.get("priors", doc)
+    return {str(k): Prior.from_dict(v, where=f"{path}: {k}") for k, v in doc.items()}
+
+
+def _data_scale(data):
+    ys = np.concatenate([y for _, y, _ in data])
+    us = np.concatenate([u for u, _, _ in data])
+    yr = float(np.ptp(ys)) or float(np.max(np.abs(ys))) or 1.0
+    return yr, float(np.max(np.abs(us))) or 1.0
+
+
+def default_priors(names, data):
+    """Weakly informative priors for the parameter leaves ``names``, scaled by the data.
+
+    k1: lognormal around the paper's 0.05 1/s, sd 2 in log (time constants ~0.4 s..1000 s
+    at 95 %); k2: lognormal around the value that maps ``max U^2`` to the output range, sd 3;
+    EUPI gains: half-normal with scale 2x the output range; polynomial and offset: normal(0,
+    10x range); thresholds and tilts (if trained): lognormal around their grid scale;
+    noise scale: half-normal with the output's range as scale.
+    """
+    yr, umax = _data_scale(data)
+    table = {
+        "thermal.k1": Prior("lognormal", math.log(0.05), 2.0),
+        "k1": Prior("lognormal", math.log(0.05), 2.0),
+        "thermal.k2": Prior("lognormal", math.log(0.05 * yr / umax**2), 3.0),
+        "k2": Prior("lognormal", math.log(0.05 * yr / umax**2), 3.0),
+        "noise.sigma": Prior("halfnormal", scale=yr),
+    }
+    out = {}
+    for name in names:
+        leaf = name.split(".")[-1]
+        if name in table:
+            out[name] = table[name]
+        elif leaf in ("gain", "v", "w"):
+            out[name] = Prior("halfnormal", scale=2.0 * yr)
+        elif leaf in ("poly", "offset"):
+            out[name] = Prior("normal", 0.0, 10.0 * yr)
+        elif leaf in ("r_sym", "r_asym"):
+            out[name] = Prior("lognormal", math.log(0.25), 1.0)
+        elif leaf == "alpha":
+            out[name] = Prior("lognormal", 0.0, 1.0)
+        else:
+            out[name] = Prior("flat")
+    return out
+
+
+# -- posterior ----------------------------------------------------------------
+
+
+class _Noise(eqx.Module):
+    """Observation noise scale (one for all records)."""
+
+    sigma: jnp.ndarray = positive()
+
+
+def _leaf_name(path):
+    name = jax.tree_util.keystr(path)
+    # params are (model_part, noise): strip the tuple index, prefix the noise leaf
+    if name.startswith("[0]"):
+        name = name[3:]
+    elif name.startswith("[1]"):
+        name = "noise" + name[3:]
+    return name.lstrip(".")
+
+
+def _element_names(name, shape):
+    if shape == ():
+        return [name]
+    return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
+
+
+def _eupi_of(model):
+    if isinstance(model, EUPI):
+        return model
+    return getattr(model, "hysteresis", None)
+
+
+def _hysteresis_input(model, u, dt):
+    if isinstance(model, EUPI):
+        return u
+    return model.thermal.effective_voltage(model.thermal.simulate(u, dt))
+
+
+def _replace_eupi(model, eupi):
+    return eupi if isinstance(model, EUPI) else eqx.tree_at(lambda m: m.hysteresis, model, eupi)
+
+
+def _ridge_lstsq(A, y, ridge):
+    """``argmin |A w - y|^2 + |ridge * w|^2`` by SVD (stays finite for duplicate operator columns)."""
+    Aa = jnp.concatenate([A, jnp.diag(ridge)], axis=0)
+    ya = jnp.concatenate([y, jnp.zeros_like(ridge)])
+    return jnp.linalg.lstsq(Aa, ya)[0]
+
+
+class Posterior:
+    """Log-posterior of a model's trainable parameters and the noise scale, in unconstrained coordinates.
+
+    ``data``: anything `smafl_jax.as_fit_data` accepts.  ``noise``: ``"gaussian"`` or
+    ``"student-t"`` (``nu`` degrees of freedom, fixed).  ``sigma``: starting noise scale
+    (default: RMS residual of ``model``).  ``priors``: ``{name: Prior}`` overriding the
+    defaults (names as in `names_leaf`).  ``linear``: see the module docstring.
+    ``gain_scale``: prior sd of the marginalised/profiled gains (default 10x output range).
+    ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).
+    """
+
+    def __init__(self, model, data, dt=None, *, trainable=None, noise="gaussian", nu=4.0, sigma=None, priors=None,
+                 linear="sample", gain_scale=None, prior_only=False):
+        if noise not in NOISE_MODELS:
+            raise UserInputError(f"noise model must be one of {NOISE_MODELS}, got {noise!r}")
+        if linear not in LINEAR_MODES:
+            raise UserInputError(f"linear must be one of {LINEAR_MODES}, got {linear!r}")
+        if not (float(nu) > 0):
+            raise UserInputError(f"Student-t degrees of freedom must be > 0, got {nu}")
+        self.data = as_fit_data(data, dt)
+        self.noise, self.nu, self.linear, self.prior_only = noise, float(nu), linear, bool(prior_only)
+        spec = default_trainable(model) if trainable is None else trainable
+        eupi = _eupi_of(model)
+        if linear != "sample":
+            if eupi is None:
+                raise UserInputError(f"linear={linear!r} needs a model with an EUPI part, got {type(model).__name__}")
+            if linear == "marginalise" and noise != "gaussian":
+                raise UserInputError("marginalising the gains is exact only for Gaussian noise; use noise='gaussian' or linear='profile'")
+            get = (lambda m: m) if isinstance(model, EUPI) else (lambda m: m.hysteresis)
+            fields = ["gain", "v", "w", "poly", "offset"]
+            spec = eqx.tree_at(lambda s: [getattr(get(s), f) for f in fields], spec, [False] * len(fields))
+        yr, _ = _data_scale(self.data)
+        self.gain_scale = float(10.0 * yr if gain_scale is None else gain_scale)
+        self.model = model
+        self.spec = spec
+        if sigma is None:
+            res = np.concatenate([np.asarray(model.simulate(jnp.asarray(u), jnp.asarray(d))) - y for u, y, d in self.data])
+            sigma = float(np.sqrt(np.mean(res**2))) if np.all(np.isfinite(res)) else 0.1 * yr
+            sigma = max(sigma, 1e-6 * yr)
+        raw = unconstrain(model)
+        raw_train, self._static = eqx.partition(raw, spec)
+        # floored zeros (e.g. NNLS gains) sit at softplus^-1(1e-10) ~ -23, far in the tail
+        # of any prior; start them where the density has mass.
+        raw_train = jax.tree_util.tree_map(lambda x: jnp.maximum(x, -7.0), raw_train)
+        params = (raw_train, unconstrain(_Noise(jnp.asarray(float(sigma)))))
+        self.theta0, self._unravel = ravel_pytree(params)
+        self.theta0 = np.asarray(self.theta0)
+        leaves = jax.tree_util.tree_flatten_with_path(params)[0]
+        self.names_leaf = [_leaf_name(p) for p, _ in leaves]
+        self.shapes_leaf = [tuple(np.shape(x)) for _, x in leaves]
+        self.names = [n for name, s in zip(self.names_leaf, self.shapes_leaf) for n in _element_names(name, s)]
+        self.ndim = len(self.names)
+        user = dict(priors or {})
+        unknown = sorted(set(user) - set(self.names_leaf))
+        if unknown:
+            raise UserInputError(f"priors given for unknown parameters {unknown}; sampled parameters are {self.names_leaf}")
+        pri = default_priors(self.names_leaf, self.data)
+        pri.update(user)
+        self.priors = pri
+        self._prior_list = [pri[n] for n in self.names_leaf]
+        self._args = tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d)) for u, y, d in self.data)
+        self.n_traces = 0
+        self._batch = jax.jit(jax.vmap(self.log_prob))
+
+    # -- pieces ------------------------------------------------------------
+    def unpack(self, theta):
+        """``(physical model, sigma)`` at the unconstrained vector ``theta`` (gains as in the template when not sampled)."""
+        raw_train, raw_noise = self._unravel(jnp.asarray(theta))
+        return constrain(eqx.combine(raw_train, self._static)), constrain(raw_noise).sigma
+
+    def _loglik_resid(self, r, sigma):
+        n = r.shape[0]
+        if self.noise == "gaussian":
+            return -0.5 * jnp.sum((r / sigma) ** 2) - n * jnp.log(sigma) - 0.5 * n * _LOG2PI
+        nu = self.nu
+        c = jax.scipy.special.gammaln(0.5 * (nu + 1)) - jax.scipy.special.gammaln(0.5 * nu) - 0.5 * math.log(nu * math.pi)
+        return n * c - n * jnp.log(sigma) - 0.5 * (nu + 1) * jnp.sum(jnp.log1p((r / sigma) ** 2 / nu))
+
+    def _design(self, model):
+        eupi = _eupi_of(model)
+        A = jnp.concatenate([eupi.features(_hysteresis_input(model, u, d)) for u, _, d in self._args])
+        y = jnp.concatenate([y for _, y, _ in self._args])
+        # column scaling (exact: prior sd scaled alike) keeps the normal equations well conditioned
+        c = jnp.maximum(jnp.sqrt(jnp.mean(A * A, axis=0)), 1e-12)
+        return A / c[None, :], y, c
+
+    def _gain_system(self, model, sigma):
+        """Normal equations of the gains' conditional Gaussian (scaled coordinates)."""
+        A, y, c = self._design(model)
+        tau = self.gain_scale * c
+        M = A.T @ A / sigma**2 + jnp.diag(1.0 / tau**2)
+        b = A.T @ y / sigma**2
+        return A, y, c, tau, M, b
+
+    def log_prob(self, theta):
+        """Log-posterior (up to a constant) at one unconstrained vector; -inf where undefined."""
+        self.n_traces += 1  # counts traces, not calls
+        raw_train, raw_noise = self._unravel(theta)
+        model = constrain(eqx.combine(raw_train, self._static))
+        noise = constrain(raw_noise)
+        phys_leaves = jax.tree_util.tree_leaves((eqx.filter(model, self.spec), noise))
+        lp = log_jacobian(raw_train) + log_jacobian(raw_noise)
+        for leaf, prior in zip(phys_leaves, self._prior_list):
+            lp = lp + prior.logpdf(leaf)
+        if not self.prior_only:
+            lp = lp + self._loglik(model, noise.sigma)
+        return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
+
+    def _loglik(self, model, sigma):
+        if self.linear == "sample":
+            r = jnp.concatenate([model.simulate(u, d) - y for u, y, d in self._args])
+            return self._loglik_resid(r, sigma)
+        A, y, c, tau, M, b = self._gain_system(model, sigma)
+        if self.linear == "profile":
+            return self._loglik_resid(A @ _ridge_lstsq(A, y, sigma / tau) - y, sigma)
+        # marginal likelihood of y ~ N(0, sigma^2 I + A diag(tau^2) A^T) via the p x p system
+        n = y.shape[0]
+        L = jnp.linalg.cholesky(M)
+        z = jax.scipy.linalg.solve_triangular(L, b, lower=True)
+        logdet_M = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
+        quad = jnp.sum(y * y) / sigma**2 - jnp.sum(z * z)
+        logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log(tau**2)) + logdet_M
+        return -0.5 * (quad + logdet_cov + n * _LOG2PI)
+
+    def __call__(self, thetas):
+        """Vectorised log-posterior ``(n_walkers, ndim) -> (n_walkers,)`` for emcee (``vectorize=True``)."""
+        thetas = np.asarray(thetas, dtype=np.float64)
+        if thetas.ndim != 2 or thetas.shape[1] != self.ndim:
+            raise ValueError(f"expected thetas of shape (n, {self.ndim}), got {thetas.shape}")
+        return np.asarray(self._batch(jnp.asarray(thetas)))
+
+    # -- derived -----------------------------------------------------------
+    def physical(self, thetas):
+        """Physical (constrained) values ``(n, ndim)`` in the order of `names`."""
+
+        def one(theta):
+            raw_train, raw_noise = self._unravel(theta)
+            phys = (constrain(raw_train), constrain(raw_noise))
+            return ravel_pytree(phys)[0]
+
+        return np.asarray(jax.jit(jax.vmap(one))(jnp.asarray(thetas)))
+
+    def initial_ball(self, n_walkers, rng, scale=1e-3):
+        """Walkers in a small ball around the starting point (the fit), all with finite density."""
+        theta0 = np.asarray(self.theta0)
+        width = scale * np.maximum(np.abs(theta0), 1.0)
+        pos = theta0 + width * rng.standard_normal((n_walkers, self.ndim))
+        lp = self(pos)
+        for _ in range(50):
+            bad = ~np.isfinite(lp)
+            if not bad.any():
+                return pos
+            pos[bad] = theta0 + 0.1 * width * rng.standard_normal((int(bad.sum()), self.ndim))
+            lp = self(pos)
+        raise UserInputError("the log-posterior is not finite around the starting model; check the fit and the priors")
+
+    def predict(self, thetas, u, dt, rng):
+        """Posterior-predictive draws on input ``u``: ``(mean function (S, T), with noise (S, T))``."""
+        thetas = jnp.asarray(thetas)
+        u = jnp.asarray(u, dtype=jnp.float64)
+        dt = jnp.asarray(dt, dtype=jnp.float64)
+        key = jax.random.PRNGKey(int(rng.integers(2**31)))
+        keys = jax.random.split(key, thetas.shape[0])
+        nu = self.nu
+
+        def one(theta, k):
+            model, sigma = self.unpack(theta)
+            k1, k2 = jax.random.split(k)
+            if self.linear != "sample":
+                A, y, c, tau, M, b = self._gain_system(model, sigma)
+                if self.linear == "profile":
+                    mean = _ridge_lstsq(A, y, sigma / tau)
+                else:
+                    L = jnp.linalg.cholesky(M)
+                    mean = jax.scipy.linalg.cho_solve((L, True), b)
+                    z = jax.random.normal(k1, mean.shape)
+                    mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
+                model = _replace_eupi(model, _eupi_of(model).with_linear_weights(mean / c))
+            f = model.simulate(u, dt)
+            if self.noise == "gaussian":
+                e = jax.random.normal(k2, f.shape)
+            else:
+                e = jax.random.t(k2, nu, f.shape)
+            return f, f + sigma * e
+
+        f, yrep = jax.jit(jax.vmap(one))(thetas, keys)
+        return np.asarray(f), np.asarray(yrep)
+
+
+# -- running ------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class SampleRun:
+    """A finished (or resumed) chain: ``chain`` (n_steps, n_walkers, ndim) in unconstrained coordinates."""
+
+    chain: np.ndarray
+    log_prob: np.ndarray
+    acceptance_fraction: np.ndarray
+    names: list
+    path: str | None
+    resumed_from: int
+
+
+def _backend_ok(path, name):
+    """Iteration count of a readable emcee HDF5 chain, or None if unreadable."""
+    import emcee
+
+    try:
+        be = emcee.backends.HDFBackend(str(path), name=name, read_only=True)
+        it = int(be.iteration)
+        if it > 0:
+            be.get_last_sample()
+        return it
+    except (OSError, KeyError, ValueError, AttributeError, RuntimeError):
+        return None
+
+
+def _checkpoint(path):
+    """Atomic copy of the (closed) HDF5 file: the fallback if a kill corrupts the live file."""
+    bak = Path(str(path) + ".bak")
+    tmp = bak.with_name(bak.name + ".tmp")
+    shutil.copyfile(path, tmp)
+    with open(tmp, "rb") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, bak)
+
+
+def run_sampler(posterior, n_steps, *, n_walkers=None, path=None, name="mcmc", seed=0, resume=True, progress=True,
+                checkpoint_s=10.0, initial=None, on_step=None):
+    """Run (or resume) `emcee.EnsembleSampler` with the vectorised log-posterior.
+
+    With ``path`` the chain goes to an emcee HDF5 backend.  If the file already
+    holds a chain and ``resume`` is true, sampling continues from its last step
+    until the chain has exactly ``n_steps`` steps (emcee stores the random state,
+    so a resumed run continues the same Markov chain).  A copy taken between
+    steps every ``checkpoint_s`` seconds is used when a hard kill has left the
+    live file unreadable (the steps since the copy are recomputed, never duplicated).
+    """
+    import emcee
+
+    n_steps = int(n_steps)
+    if n_steps < 1:
+        raise UserInputError(f"number of steps must be >= 1, got {n_steps}")
+    ndim = posterior.ndim
+    if n_walkers is None:
+        n_walkers = max(32, 2 * ndim + 2)
+    n_walkers = int(n_walkers) + int(n_walkers) % 2
+    if n_walkers < 2 * ndim:
+        raise UserInputError(f"need at least 2 x {ndim} = {2 * ndim} walkers for {ndim} parameters, got {n_walkers}")
+    rng = np.random.default_rng(seed)
+    backend = None
+    done = 0
+    if path is not None:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.exists() and resume:
+            it = _backend_ok(path, name)
+            bak = Path(str(path) + ".bak")
+            if it is None:
+                it_bak = _backend_ok(bak, name) if bak.exists() else None
+                if it_bak is None:
+                    raise UserInputError(f"{path}: the chain file is unreadable and has no usable checkpoint; rerun with a fresh output (restart)")
+                print(f"note: {path} was left unreadable by an interruption; continuing from its checkpoint at step {it_bak}", file=sys.stderr)
+                shutil.copyfile(bak, path)
+                it = it_bak
+            done = it
+        elif path.exists():
+            path.unlink()
+        backend = emcee.backends.HDFBackend(str(path), name=name)
+        if done and backend.shape != (n_walkers, ndim):
+            raise UserInputError(f"{path}: holds a chain of shape {backend.shape} (walkers, parameters); this run has {(n_walkers, ndim)}; restart instead of resuming")
+        if done > n_steps:
+            raise UserInputError(f"{path}: already holds {done} steps, more than the {n_steps} requested")
+        if not done:
+            backend.reset(n_walkers, ndim)
+    sampler = emcee.EnsembleSampler(n_walkers, ndim, posterior, vectorize=True, backend=backend)
+    if done:
+        state = None  # emcee restores the last position, log-probabilities and random state
+        print(f"resuming {path} at step {done} of {n_steps}", file=sys.stderr)
+    else:
+        sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
+        state = posterior.initial_ball(n_walkers, rng) if initial is None else np.asarray(initial)
+    remaining = n_steps - done
+    if remaining > 0:
+        if state is None:
+            state = sampler.get_last_sample()
+        last = time.monotonic()
+        kwargs = {"progress": progress, "progress_kwargs": {"desc": "sampling", "file": sys.stderr}} if progress else {}
+        for i, _ in enumerate(sampler.sample(state, iterations=remaining, **kwargs)):
+            # here the step is saved and the file closed: safe to copy
+            if path is not None and (time.monotonic() - last >= checkpoint_s):
+                _checkpoint(path)
+                last = time.monotonic()
+            if on_step is not None:
+                on_step(done + i + 1)
+        if path is not None:
+            _checkpoint(path)
+    return _collect(sampler.backend, posterior.names, str(path) if path is not None else None, done)
+
+
+def _collect(backend, names, path, resumed_from):
+    return SampleRun(
+        chain=np.asarray(backend.get_chain()),
+        log_prob=np.asarray(backend.get_log_prob()),
+        acceptance_fraction=np.asarray(backend.accepted) / max(int(backend.iteration), 1),
+        names=list(names),
+        path=path,
+        resumed_from=resumed_from,
+    )
+
+
+def load_run(path, names, name="mcmc"):
+    """`SampleRun` from an emcee HDF5 file written by `run_sampler`."""
+    import emcee
+
+    return _collect(emcee.backends.HDFBackend(str(path), name=name, read_only=True), names, str(path), 0)
+
+
+# -- diagnostics and summary --------------------------------------------------
+
+
+def diagnostics(run, burn=None, *, warn=True):
+    """emcee autocorrelation times, acceptance fraction and effective sample sizes.
+
+    ``burn=None`` discards ``max(n_steps // 5, 3 tau_max)`` (at most half the chain).
+    Warns (`ChainTooShortWarning`) when the kept chain is shorter than 50 tau_max,
+    emcee's own criterion for a reliable tau.
+    """
+    import emcee
+
+    chain = run.chain
+    n_steps, n_walkers, _ = chain.shape
+    tau_all = emcee.autocorr.integrated_time(chain, tol=0)
+    if burn is None:
+        burn = min(n_steps // 2, max(n_steps // 5, int(math.ceil(3 * np.nanmax(tau_all)))))
+    burn = int(burn)
+    if not 0 <= burn < n_steps:
+        raise UserInputError(f"burn-in must be in [0, {n_steps}), got {burn}")
+    kept = chain[burn:]
+    tau = emcee.autocorr.integrated_time(kept, tol=0)
+    n_kept = kept.shape[0]
+    ess = n_kept * n_walkers / tau
+    tau_max = float(np.nanmax(tau))
+    reliable = bool(n_kept >= 50 * tau_max)
+    messages = []
+    if not reliable:
+        msg = (f"chain too short for reliable estimates: {n_kept} steps kept after burn-in, fewer than 50 x the "
+               f"largest autocorrelation time ({tau_max:.1f} steps); run at least {int(math.ceil(50 * tau_max + burn))} steps")
+        messages.append(msg)
+        if warn:
+            warnings.warn(msg, ChainTooShortWarning, stacklevel=2)
+    acc = float(np.mean(run.acceptance_fraction))
+    if not 0.1 <= acc <= 0.8:
+        messages.append(f"mean acceptance fraction {acc:.2f} is outside [0.1, 0.8]: the ensemble may be stuck or badly scaled")
+    return {
+        "burn": burn,
+        "n_steps": int(n_steps),
+        "n_walkers": int(n_walkers),
+        "autocorr_time": tau,
+        "ess": ess,
+        "acceptance_fraction": acc,
+        "reliable": reliable,
+        "warnings": messages,
+    }
+
+
+def _stats(x):
+    q = np.quantile(x, [0.025, 0.05, 0.5, 0.95, 0.975])
+    return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)), "q025": float(q[0]), "q05": float(q[1]),
+            "median": float(q[2]), "q95": float(q[3]), "q975": float(q[4])}
+
+
+def derived_quantities(posterior, phys):
+    """Thermal time constant ``1/k1`` and steady-state gain ``k2/k1`` (when k2 is identified)."""
+    names = posterior.names
+    out = {}
+    k1n = next((n for n in ("thermal.k1", "k1") if n in names), None)
+    k2n = next((n for n in ("thermal.k2", "k2") if n in names), None)
+    if k1n:
+        out["time_constant_s"] = _stats(1.0 / phys[:, names.index(k1n)])
+    if k1n and k2n:
+        out["steady_state_gain"] = _stats(phys[:, names.index(k2n)] / phys[:, names.index(k1n)])
+    elif isinstance(posterior.model, Cascade):
+        out["steady_state_gain"] = {"identified": False, "note": "k2 does not affect the cascade's displacement (it cancels in "
+                                    "sqrt(theta k1/k2)); K2/K1 is identified only by the JouleThermal model fitted alone (U^2 -> output)"}
+    elif isinstance(posterior.model, JouleThermal) and k1n:
+        k2 = float(posterior.model.k2)
+        out["steady_state_gain"] = {"identified": False, "note": f"k2 held fixed at {k2:g}"}
+    return out
+
+
+def summarize(posterior, run, burn=None, *, warn=True):
+    """``summary.json`` content: per-parameter posterior statistics (physical units) and run diagnostics."""
+    diag = diagnostics(run, burn, warn=warn)
+    flat = run.chain[diag["burn"]:].reshape(-1, posterior.ndim)
+    phys = posterior.physical(flat)
+    params = {}
+    for j, name in enumerate(posterior.names):
+        params[name] = {**_stats(phys[:, j]), "autocorr_time": float(diag["autocorr_time"][j]), "ess": float(diag["ess"][j])}
+    return {
+        "parameters": params,
+        "derived": derived_quantities(posterior, phys),
+        "autocorr_time": {n: float(t) for n, t in zip(posterior.names, diag["autocorr_time"])},
+        "autocorr_time_max": float(np.nanmax(diag["autocorr_time"])),
+        "acceptance_fraction": diag["acceptance_fraction"],
+        "n_steps": diag["n_steps"],
+        "n_walkers": diag["n_walkers"],
+        "burn": diag["burn"],
+        "n_samples": int(flat.shape[0]),
+        "ess_min": float(np.nanmin(diag["ess"])),
+        "reliable": diag["reliable"],
+        "warnings": diag["warnings"],
+        "settings": {"noise": posterior.noise, "nu": posterior.nu if posterior.noise == "student-t" else None,
+                     "linear": posterior.linear, "gain_scale": posterior.gain_scale if posterior.linear != "sample" else None,
+                     "priors": {k: v.to_dict() for k, v in posterior.priors.items()}},
+    }

@@ -1,0 +1,745 @@
+"""Residual diagnosis and effect attribution (issue 6).
+
+Procedure (`diagnose`):
+
+1. **Base model** (`choose_base`): a voltage input with dynamics gets the
+   `Cascade` (Joule thermal lag + EUPI); a rate-free record (a ``branch``
+   column, or a sample time >= 5 s: quasi-static data) or a non-voltage input
+   (temperature, pressure) gets the `EUPI` on the input itself (``u_ref`` = input
+   minimum for non-voltage inputs).
+2. **Split** (`make_split`): with a ``branch`` column, branches whose label is
+   ``2 mod 3`` are held out (interleaved, so every held-out reversal lies between
+   trained ones; branch 0, the major loop, is always trained on); otherwise the
+   last 30 % of the record is held out (time block; the model is run over the
+   whole record from the start and scored on the block).
+3. **Residuals** of the base fit: whiteness (ACF with bounds, Ljung-Box),
+   cross-correlation with the input's past, correlation with candidate signals
+   (`smafl_jax._residuals`).
+4. **Evidence** per catalogue effect: a score (Lagrange-multiplier) test.  The
+   effect's signature is the change of the model output when the effect is
+   switched on weakly (several probes cover its nuisance parameters); the
+   base-model directions (EUPI features, thermal rate) are projected out, and
+   the partial R^2 of the residual on the signature, with a Bartlett-effective
+   sample size, gives the evidence.
+5. **Attribution**: the plausible effects (p < 0.01), best first, up to
+   ``max_candidates``, are each fitted jointly with the base model (grid start
+   for the effect's nonlinear parameters, linear least squares for the gains,
+   then joint Levenberg-Marquardt).  An effect is *accepted* when it lowers the
+   held-out RMSE by at least ``min_gain`` (5 %) and lowers the training BIC;
+   the best accepted one is selected, and a second effect is added greedily only
+   if it passes the same test against the one-effect model.  Nothing accepted:
+   ``selected = []`` and the strongest remaining residual correlate is reported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _config  # noqa: F401
+from ._cascade import Cascade
+from ._effects import (
+    EFFECTS,
+    AmbientDrift,
+    AsymmetricCooling,
+    Creep,
+    Delay,
+    ExtendedModel,
+    LoadDependence,
+    NonlinearCooling,
+    OutputSaturation,
+    RateDependence,
+    ResistanceTC,
+)
+from ._errors import UserInputError
+from ._eupi import EUPI
+from ._metrics import metrics
+from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
+from ._thermal import JouleThermal
+
+__all__ = ["choose_base", "make_split", "fit_extended", "effect_evidence", "diagnose", "Segment", "Split"]
+
+VOLTAGE_NAMES = ("voltage", "volt", "u_v")
+LOAD_NAMES = ("load", "force", "mass", "weight")
+RATE_FREE_DT = 5.0
+HOLDOUT_FRACTION = 0.3
+
+
+def _log(msg, verbose):
+    if verbose:
+        print(msg, file=sys.stderr, flush=True)
+
+
+# -- base model and split ---------------------------------------------------------
+
+
+def is_rate_free(record):
+    return "branch" in record.extra or record.dt >= RATE_FREE_DT
+
+
+def is_voltage(name):
+    n = (name or "").lower()
+    return any(k in n for k in VOLTAGE_NAMES) or n in ("u", "input")
+
+
+def choose_base(record):
+    """Untrained base model and the rule that picked it (see module docstring)."""
+    u = np.asarray(record.u)
+    if is_voltage(record.input_name) and not is_rate_free(record):
+        model = Cascade(thermal=JouleThermal(), hysteresis=EUPI.from_range(0.0, float(u.max())))
+        return model, "cascade: voltage input with dynamics (Joule thermal lag + EUPI on the effective voltage)"
+    if is_voltage(record.input_name):
+        return EUPI.from_range(float(u.min()), float(u.max())), "EUPI on the voltage: rate-free record (branch column or dt >= 5 s)"
+    return (
+        EUPI.from_range(float(u.min()), float(u.max()), u_ref=float(u.min())),
+        f"EUPI on the input: '{record.input_name}' is not a voltage (u_ref = input minimum)",
+    )
+
+
+def load_column(record):
+    for k in record.extra:
+        if any(n in k.lower() for n in LOAD_NAMES):
+            return k
+    return None
+
+
+@dataclasses.dataclass
+class Segment:
+    """A stretch simulated from its start; scored on ``mask``."""
+
+    time: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    dt: float
+    mask: np.ndarray
+    load: np.ndarray | None = None
+    extra: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class Split:
+    kind: str
+    rule: str
+    train: list
+    test: list
+    train_labels: list = dataclasses.field(default_factory=list)
+    test_labels: list = dataclasses.field(default_factory=list)
+
+
+def _segment(rec, idx, mask=None, load_col=None):
+    sub = rec.take(idx)
+    n = len(sub)
+    return Segment(
+        time=sub.time,
+        u=sub.u,
+        y=sub.y,
+        dt=rec.dt,
+        mask=np.ones(n, bool) if mask is None else mask,
+        load=None if load_col is None else sub.extra[load_col],
+        extra={k: v for k, v in sub.extra.items() if k != "branch"},
+    )
+
+
+def make_split(record, holdout_fraction=HOLDOUT_FRACTION):
+    """Documented split: interleaved branches (label % 3 == 2) or the last 30 % as a time block."""
+    lc = load_column(record)
+    if "branch" in record.extra:
+        b = np.asarray(record.extra["branch"]).astype(int)
+        labels = list(dict.fromkeys(b.tolist()))
+        held = [k for k in labels if k != 0 and k % 3 == 2]
+        if not held or len(held) == len(labels):
+            raise UserInputError("branch split needs at least one branch labelled 2 mod 3 and one other branch")
+        train = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k not in held]
+        test = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k in held]
+        return Split("branch", "branches with label % 3 == 2 held out (interleaved); branch 0 (major loop) trained", train, test,
+                     [k for k in labels if k not in held], held)
+    n = len(record)
+    cut = int(round(n * (1.0 - holdout_fraction)))
+    if cut < 20 or n - cut < 10:
+        raise UserInputError(f"record too short to hold out the last {holdout_fraction:.0%} ({n} samples)")
+    full = np.arange(n)
+    train = [_segment(record, full[:cut], load_col=lc)]
+    test = [_segment(record, full, mask=full >= cut, load_col=lc)]
+    return Split("time", f"time block: first {1 - holdout_fraction:.0%} trained, last {holdout_fraction:.0%} held out (model run from t = 0)",
+                 train, test, [f"0..{cut - 1}"], [f"{cut}..{n - 1}"])
+
+
+# -- simulation and metrics -------------------------------------------------------
+
+
+@eqx.filter_jit
+def _sim(model, u, dt, load):
+    return model.simulate(u, dt, load=load)
+
+
+@eqx.filter_jit
+def _features(model, u, dt):
+    return model.features(u, dt)
+
+
+def simulate_segment(model, seg):
+    load = None if seg.load is None else jnp.asarray(seg.load)
+    return np.asarray(_sim(model, jnp.asarray(seg.u), jnp.asarray(seg.dt), load))
+
+
+def score(model, segs):
+    y = np.concatenate([s.y[s.mask] for s in segs])
+    yh = np.concatenate([simulate_segment(model, s)[s.mask] for s in segs])
+    return metrics(y, yh), y - yh
+
+
+# -- fitting ------------------------------------------------------------------------
+
+
+def trainable_spec(model):
+    """Train thermal k1, EUPI gains and effect parameters; keep grids, k2 and load references fixed."""
+    spec = jax.tree_util.tree_map(eqx.is_inexact_array, model)
+    h = lambda m: m.hysteresis if not isinstance(m.base, EUPI) else m.base  # noqa: E731
+    spec = eqx.tree_at(lambda s: [getattr(h(s), f) for f in ("u_ref", "u_span", "r_sym", "r_asym", "alpha")], spec, [False] * 5)
+    if isinstance(model.base, Cascade):
+        spec = eqx.tree_at(lambda s: s.base.thermal.k2, spec, False)
+    for i, e in enumerate(model.effects):
+        if isinstance(e, LoadDependence):
+            spec = eqx.tree_at(lambda s: (s.effects[i].load_ref, s.effects[i].load_scale), spec, (False, False))
+    return spec
+
+
+def n_parameters(model):
+    spec = trainable_spec(model)
+    return int(sum(np.size(x) for x, t in zip(jax.tree_util.tree_leaves(model), jax.tree_util.tree_leaves(spec)) if t))
+
+
+def _bvls(A, b, nonneg):
+    """Bounded least squares via the Cholesky factor of the (column-scaled) normal equations (fast for long records)."""
+    from scipy.linalg import cho_factor, solve_triangular
+    from scipy.optimize import lsq_linear
+
+    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-12)
+    As = A / scale
+    G = As.T @ As
+    G[np.diag_indices_from(G)] += 1e-12 * np.trace(G) / G.shape[0]
+    R = np.triu(cho_factor(G, lower=False)[0])
+    rhs = solve_triangular(R.T, As.T @ b, lower=True)
+    lb = np.where(nonneg, 0.0, -np.inf)
+    sol = lsq_linear(R, rhs, bounds=(lb, np.full_like(lb, np.inf)), method="bvls")
+    return sol.x / scale
+
+
+def _design(model, segs):
+    """Stacked design matrix (EUPI gains [+ load offset]) and targets over the scored samples."""
+    ld = model.get("load_dependence")
+    rows, targets = [], []
+    for s in segs:
+        F = np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]
+        if ld is not None:
+            l_ = (np.asarray(s.load)[s.mask] - float(ld.load_ref)) / float(ld.load_scale)
+            F = np.column_stack([F * (1.0 + float(ld.a) * l_)[:, None], l_])
+        rows.append(F)
+        targets.append(np.asarray(s.y, float)[s.mask])
+    return np.concatenate(rows), np.concatenate(targets)
+
+
+def profile_gains(model, segs, *, gn_steps=8):
+    """Optimal EUPI gains (bounded LS) for the model's nonlinear parameters; returns ``(model, sse)``.
+
+    Variable projection: every model here is linear in the EUPI gains except
+    through ``output_saturation``; for that one the gains start from the
+    least-squares fit of the inverse-mapped output and are finished by
+    Gauss-Newton steps, each a bounded least-squares problem.
+    """
+    eupi = model.hysteresis
+    sat = model.get("output_saturation")
+    ld = model.get("load_dependence")
+    A, y = _design(model, segs)
+    if not np.all(np.isfinite(A)):
+        return model, np.inf
+    nonneg = eupi.nonnegative_columns()
+    if ld is not None:
+        nonneg = np.r_[nonneg, False]
+    if sat is None:
+        theta = _bvls(A, y, nonneg)
+        sse = float(np.sum((A @ theta - y) ** 2))
+    else:
+        m, w = float(sat.m), float(sat.w)
+        smap = lambda z: m + w * np.tanh((z - m) / w)  # noqa: E731
+        theta = _bvls(A, m + w * np.arctanh(np.clip((y - m) / w, -0.995, 0.995)), nonneg)
+        sse = float(np.sum((smap(A @ theta) - y) ** 2))
+        for _ in range(gn_steps):
+            z = A @ theta
+            J = A * (1.0 / np.cosh((z - m) / w) ** 2)[:, None]
+            cand = _bvls(J, y - smap(z) + J @ theta, nonneg)
+            sse_c = float(np.sum((smap(A @ cand) - y) ** 2))
+            if not sse_c < sse:
+                break
+            done = sse - sse_c < 1e-9 * sse
+            theta, sse = cand, sse_c
+            if done:
+                break
+    if ld is not None:
+        model = eqx.tree_at(lambda mm: mm.get("load_dependence").b, model, jnp.asarray(theta[-1]))
+        theta = theta[:-1]
+    return model.with_hysteresis(eupi.with_linear_weights(jnp.asarray(theta))), sse
+
+
+def linear_init(model, segs):
+    """Model with the optimal EUPI gains for its other parameters (see `profile_gains`)."""
+    return profile_gains(model, segs)[0]
+
+
+#: Nonlinear (profiled-over) parameters: (effect name or "k1", field, kind, step).
+_NONLINEAR = {
+    "k1": [("k1", "log", 0.5)],
+    "delay": [("tau", "log", 0.5)],
+    "ambient_drift": [("drift", "lin", 0.005)],
+    "resistance_tc": [("beta", "log", 0.5)],
+    "asymmetric_cooling": [("log_ratio", "lin", 0.2)],
+    "nonlinear_cooling": [("gamma", "log", 0.5)],
+    "rate_dependence": [("c", "log", 0.5)],
+    "creep": [("g", "lin", 0.05), ("tau", "log", 0.5)],
+    "output_saturation": [("m", "lin", "y"), ("w", "log", 0.2)],
+    "load_dependence": [("a", "lin", 0.05)],
+}
+
+
+def _phi_layout(model, ctx):
+    lay = []
+    if isinstance(model.base, Cascade):
+        lay.append((None, "k1", "log", 0.5))
+    for e in model.effects:
+        for field, kind, step in _NONLINEAR[e.name]:
+            lay.append((e.name, field, kind, 0.05 * ctx["y_range"] if step == "y" else step))
+    return lay
+
+
+def _get_phi(model, lay):
+    out = []
+    for name, field, kind, _ in lay:
+        v = float(model.base.thermal.k1) if name is None else float(getattr(model.get(name), field))
+        out.append(np.log(max(v, 1e-12)) if kind == "log" else v)
+    return np.array(out)
+
+
+def _set_phi(model, lay, phi):
+    for (name, field, kind, _), p in zip(lay, phi):
+        v = jnp.asarray(float(np.exp(np.clip(p, -30, 30))) if kind == "log" else float(p))
+        if name is None:
+            model = eqx.tree_at(lambda m: m.base.thermal.k1, model, v)
+        else:
+            idx = [e.name for e in model.effects].index(name)
+            model = eqx.tree_at(lambda m: getattr(m.effects[idx], field), model, v)
+    return model
+
+
+def _effect_grid(name, ctx):
+    """Starting points for an effect's nonlinear parameters (the gains come from least squares)."""
+    a = jnp.asarray
+    dt, yr, ym = ctx["dt"], ctx["y_range"], ctx["y_mid"]
+    if name == "delay":
+        return [Delay(tau=a(dt * 2.0**k)) for k in range(6)]
+    if name == "ambient_drift":
+        return [AmbientDrift(drift=a(d)) for d in (-0.05, -0.01, 0.01, 0.05)]
+    if name == "resistance_tc":
+        return [ResistanceTC(beta=a(b)) for b in (0.1, 0.4, 1.2)]
+    if name == "asymmetric_cooling":
+        return [AsymmetricCooling(log_ratio=a(r)) for r in (-0.7, -0.25, 0.25, 0.7)]
+    if name == "nonlinear_cooling":
+        return [NonlinearCooling(gamma=a(g)) for g in (0.1, 0.4, 1.2)]
+    if name == "rate_dependence":
+        return [RateDependence(c=a(c)) for c in (0.1, 0.5, 2.0)]
+    if name == "creep":
+        return [Creep(g=a(g), tau=a(t)) for g in (-0.1, 0.1, 0.3) for t in (30.0, 100.0, 300.0, 1000.0)]
+    if name == "output_saturation":
+        return [OutputSaturation(m=a(ym + dm * yr), w=a(f * yr / 2)) for dm in (-0.1, 0.0, 0.1) for f in (1.02, 1.2, 2.0)]
+    if name == "load_dependence":
+        return [LoadDependence(a=a(x), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])) for x in (-0.2, 0.0, 0.2)]
+    raise UserInputError(f"unknown effect {name!r}; catalogue: {list(EFFECTS)}")
+
+
+def _probe(name, ctx):
+    """Weak versions of an effect whose output change is its residual signature."""
+    a = jnp.asarray
+    yr, lo = ctx["y_range"], ctx["y_lo"]
+    if name == "delay":
+        return [Delay(tau=a(ctx["dt"]))]
+    if name == "ambient_drift":
+        return [AmbientDrift(drift=a(0.01))]
+    if name == "resistance_tc":
+        return [ResistanceTC(beta=a(0.05))]
+    if name == "asymmetric_cooling":
+        return [AsymmetricCooling(log_ratio=a(0.05))]
+    if name == "nonlinear_cooling":
+        return [NonlinearCooling(gamma=a(0.05))]
+    if name == "rate_dependence":
+        return [RateDependence(c=a(0.05))]
+    if name == "creep":
+        return [Creep(g=a(0.05), tau=a(t)) for t in (30.0, 100.0, 300.0, 1000.0)]
+    if name == "output_saturation":
+        return [OutputSaturation(m=a(lo + f * yr), w=a(3.0 * yr)) for f in (0.25, 0.5, 0.75)]
+    if name == "load_dependence":
+        return [
+            LoadDependence(a=a(0.05), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])),
+            LoadDependence(a=a(0.0), b=a(0.05 * yr), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])),
+        ]
+    raise UserInputError(f"unknown effect {name!r}")
+
+
+def applicable_effects(base, split, rate_free):
+    """Catalogue effects that make sense for this base model and record."""
+    out = []
+    has_load = all(s.load is not None for s in split.train + split.test)
+    for name, cls in EFFECTS.items():
+        if "thermal" in cls.needs and not isinstance(base, Cascade):
+            continue
+        if "time" in cls.needs and rate_free:
+            continue
+        if "load" in cls.needs and (not has_load or len(split.train) != 1):
+            continue
+        out.append(name)
+    return out
+
+
+def _context(split):
+    y = np.concatenate([s.y[s.mask] for s in split.train])
+    ctx = {"dt": float(split.train[0].dt), "y_lo": float(y.min()), "y_range": float(np.ptp(y)) or 1.0, "y_mid": float(0.5 * (y.min() + y.max()))}
+    if split.train[0].load is not None:
+        ld = np.concatenate([s.load for s in split.train])
+        ctx["load_ref"] = float(np.mean(ld))
+        ctx["load_scale"] = float(np.std(ld)) or 1.0
+    return ctx
+
+
+def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=False):
+    """Fit ``ExtendedModel(base, effects)`` on the training segments jointly.
+
+    Variable projection: the EUPI gains are profiled out by bounded least
+    squares (`profile_gains`), and the few nonlinear parameters (thermal rate
+    ``k1`` and the effects' parameters, log-transformed where positive) are
+    searched by Nelder-Mead from the best of a small grid of starts.  Effects
+    already in ``base`` (an `ExtendedModel`) start from their fitted values.
+    Returns ``(model, info)``.
+    """
+    from scipy.optimize import minimize
+
+    ctx = _context(split)
+    start = base if isinstance(base, ExtendedModel) else ExtendedModel(base, ())
+    have = set(start.effect_names)
+    new = [n for n in effects if n not in have]
+    order = list(EFFECTS)
+    starts = []
+    for combo in _product([_effect_grid(n, ctx) for n in new]):
+        m = ExtendedModel(start.base, tuple(sorted(tuple(start.effects) + tuple(combo), key=lambda e: order.index(e.name))))
+        starts.append(m)
+    if k1_grid is not None and isinstance(start.base, Cascade):
+        starts = [eqx.tree_at(lambda m: m.base.thermal.k1, c, jnp.asarray(k)) for c in starts for k in k1_grid]
+    t0 = time.time()
+    scored = sorted(((profile_gains(m, split.train)[1], i) for i, m in enumerate(starts)), key=lambda t: t[0])
+    if not np.isfinite(scored[0][0]):
+        raise UserInputError("every starting point of the fit gave a non-finite output")
+    best = starts[scored[0][1]]
+    lay = _phi_layout(best, ctx)
+    n_eval = len(starts)
+    if lay:
+        phi0 = _get_phi(best, lay)
+        cache = {}
+
+        def objective(phi):
+            key = tuple(np.round(phi, 12))
+            if key not in cache:
+                _, sse = profile_gains(_set_phi(best, lay, phi), split.train)
+                cache[key] = sse if np.isfinite(sse) else 1e300
+            return cache[key]
+
+        simplex = [phi0] + [phi0 + np.eye(len(lay))[i] * lay[i][3] for i in range(len(lay))]
+        res = minimize(objective, phi0, method="Nelder-Mead",
+                       options={"initial_simplex": np.array(simplex), "maxiter": max_iter or 150 * len(lay), "xatol": 1e-4, "fatol": 1e-10})
+        best = _set_phi(best, lay, res.x)
+        n_eval += len(cache)
+        converged = bool(res.success)
+    else:
+        converged = True
+    model, sse = profile_gains(best, split.train)
+    info = {"n_starts": len(starts), "n_evaluations": n_eval, "nonlinear_parameters": len(lay), "converged": converged,
+            "train_sse": sse, "seconds": time.time() - t0}
+    _log(f"  fit {'+'.join(effects) or 'base'}: {len(starts)} starts, {n_eval} evaluations, {info['seconds']:.1f} s", verbose)
+    return model, info
+
+
+def _product(lists):
+    out = [()]
+    for lst in lists:
+        out = [o + (x,) for o in out for x in lst]
+    return out
+
+
+def _train_sse(model, segs):
+    return float(sum(np.sum((simulate_segment(model, s) - s.y)[s.mask] ** 2) for s in segs))
+
+
+def information_criteria(model, segs):
+    n = int(sum(s.mask.sum() for s in segs))
+    sse = _train_sse(model, segs)
+    k = n_parameters(model)
+    ll = n * np.log(max(sse, 1e-300) / n)
+    return {"n": n, "sse": sse, "k": k, "aic": float(ll + 2 * k), "bic": float(ll + k * np.log(n))}
+
+
+# -- evidence ----------------------------------------------------------------------
+
+
+def _project_out(B, x):
+    coef, *_ = np.linalg.lstsq(B, x, rcond=None)
+    return x - B @ coef
+
+
+def effect_evidence(model, split, names, residual):
+    """Score-test evidence for each effect name: partial R^2 of the training residual on its signature."""
+    ctx = _context(split)
+    seg_y = [simulate_segment(model, s) for s in split.train]
+    base_cols = [np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask] for s in split.train]
+    B = np.concatenate(base_cols)
+    if isinstance(model.base, Cascade):
+        k1 = model.base.thermal.k1
+        pert = eqx.tree_at(lambda m: m.base.thermal.k1, model, k1 * 1.01)
+        dk = np.concatenate([(simulate_segment(pert, s) - y0)[s.mask] for s, y0 in zip(split.train, seg_y)])
+        B = np.column_stack([B, dk])
+    colscale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-12)
+    B = B / colscale
+    e = _project_out(B, residual)
+    out = {}
+    for name in names:
+        best = None
+        for probe in _probe(name, ctx):
+            m = ExtendedModel(model.base, tuple(model.effects) + (probe,))
+            sig = np.concatenate([(simulate_segment(m, s) - y0)[s.mask] for s, y0 in zip(split.train, seg_y)])
+            sp = _project_out(B, sig)
+            if not np.all(np.isfinite(sp)) or np.std(sp) < 1e-12 * (np.std(sig) + 1e-300):
+                continue
+            r = float(np.corrcoef(e, sp)[0, 1]) if np.std(e) > 0 else 0.0
+            n_eff = effective_n(e, sp)
+            stat = n_eff * r * r
+            from scipy import stats
+
+            item = {"partial_r2": r * r, "corr": r, "n_eff": n_eff, "lm_stat": stat, "p_value": float(stats.chi2.sf(stat, 1)),
+                    "probe": {k: float(np.asarray(getattr(probe, k))) for k in probe.parameters if hasattr(probe, k)}}
+            if best is None or item["partial_r2"] > best["partial_r2"]:
+                best = item
+        out[name] = best or {"partial_r2": 0.0, "corr": 0.0, "n_eff": 0.0, "lm_stat": 0.0, "p_value": 1.0, "probe": {}}
+    return out
+
+
+# -- diagnosis -------------------------------------------------------------------------
+
+
+def _metrics_pair(model, split):
+    tr, _ = score(model, split.train)
+    te, _ = score(model, split.test)
+    return tr, te
+
+
+def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effects=2, p_threshold=0.01, verbose=True):
+    """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``."""
+    if record.y is None:
+        raise UserInputError("diagnose needs an output column")
+    t_start = time.time()
+    base0, base_rule = choose_base(record)
+    rate_free = is_rate_free(record)
+    split = make_split(record)
+    names = applicable_effects(base0, split, rate_free) if effects is None else list(effects)
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown:
+        raise UserInputError(f"unknown effect(s) {unknown}; catalogue: {list(EFFECTS)}")
+    _log(f"diagnose: {len(record)} samples, base {type(base0).__name__}, split {split.kind}, {len(names)} applicable effects", verbose)
+    k1_grid = (0.01, 0.03, 0.1, 0.3) if isinstance(base0, Cascade) else None
+    base, base_info = fit_extended(base0, [], split, k1_grid=k1_grid, verbose=verbose)
+    base_tr, base_te = _metrics_pair(base, split)
+    base_ic = information_criteria(base, split.train)
+    _, res_tr = score(base, split.train)
+    _, res_te = score(base, split.test)
+
+    # residual diagnostics on train and held-out
+    def resid_block(segs, resid):
+        u = np.concatenate([s.u[s.mask] for s in segs])
+        out = {"whiteness": whiteness_report(resid, u)}
+        sigs = {}
+        for s in segs:
+            yh = simulate_segment(base, s)
+            x = np.asarray(base.hysteresis_input(jnp.asarray(s.u), jnp.asarray(s.dt))) if isinstance(base.base, Cascade) else None
+            cs = candidate_signals(s.time, s.u, yh, s.dt, x=x, extra=s.extra)
+            for k, v in cs.items():
+                sigs.setdefault(k, []).append(v[s.mask])
+        sigs = {k: np.concatenate(v) for k, v in sigs.items() if len(v) == len(segs)}
+        out["signal_correlations"] = signal_correlations(resid, sigs)
+        return out
+
+    residuals = {"train": resid_block(split.train, res_tr), "heldout": resid_block(split.test, res_te)}
+    evidence = effect_evidence(base, split, names, res_tr)
+    ranked = sorted(names, key=lambda n: -evidence[n]["partial_r2"])
+    plausible = [n for n in ranked if evidence[n]["p_value"] < p_threshold]
+    to_fit = plausible[:max_candidates]
+    _log("evidence ranking: " + ", ".join(f"{n} (R2 {evidence[n]['partial_r2']:.3f}, p {evidence[n]['p_value']:.1e})" for n in ranked), verbose)
+
+    base_h = base_te["rmse"]
+    candidates = []
+    fitted = {}
+    for name in ranked:
+        entry = {"name": name, "evidence": evidence[name], "plausible": name in plausible, "fitted": name in to_fit}
+        if name in to_fit:
+            m, info = fit_extended(base, [name], split, verbose=verbose)
+            tr, te = _metrics_pair(m, split)
+            ic = information_criteria(m, split.train)
+            entry.update({
+                "train_rmse": tr["rmse"], "heldout_rmse": te["rmse"], "heldout_e_r_percent": te["e_r_percent"],
+                "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
+                "delta_bic": ic["bic"] - base_ic["bic"], "delta_aic": ic["aic"] - base_ic["aic"], "added_parameters": ic["k"] - base_ic["k"],
+                "parameters": _effect_params(m.get(name)), "fit": info,
+            })
+            entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
+            fitted[name] = (m, te["rmse"], ic)
+        candidates.append(entry)
+
+    accepted = sorted([c for c in candidates if c.get("accepted")], key=lambda c: c["heldout_rmse"])
+    selected, chosen = [], base
+    if accepted:
+        first = accepted[0]["name"]
+        selected, chosen = [first], fitted[first][0]
+        cur_h, cur_ic = fitted[first][1], fitted[first][2]
+        for c in accepted[1:]:
+            if len(selected) >= max_effects:
+                break
+            m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
+            _, te2 = _metrics_pair(m2, split)
+            ic2 = information_criteria(m2, split.train)
+            ok = te2["rmse"] <= (1.0 - min_gain) * cur_h and ic2["bic"] < cur_ic["bic"]
+            c["combined_with"] = {"effects": selected + [c["name"]], "heldout_rmse": te2["rmse"], "delta_bic_vs_previous": ic2["bic"] - cur_ic["bic"], "accepted": bool(ok)}
+            if ok:
+                selected, chosen, cur_h, cur_ic = selected + [c["name"]], m2, te2["rmse"], ic2
+    ext_tr, ext_te = _metrics_pair(chosen, split)
+    _, ext_res_te = score(chosen, split.test)
+    _, ext_res_tr = score(chosen, split.train)
+
+    strongest = _strongest_correlate(residuals["heldout"]["signal_correlations"] if not selected else
+                                     resid_after(chosen, split, ext_res_te))
+    result = {
+        "record": {"n_samples": len(record), "sample_time_s": record.dt, "input_column": record.input_name, "output_column": record.output_name,
+                   "path": record.path, "sha256": record.sha256},
+        "base": {"model": type(base0).__name__, "rule": base_rule, "rate_free": rate_free, "train": base_tr, "heldout": base_te,
+                 "train_rmse": base_tr["rmse"], "heldout_rmse": base_te["rmse"], "information_criteria": base_ic, "fit": base_info},
+        "split": {"kind": split.kind, "rule": split.rule, "train": split.train_labels, "heldout": split.test_labels},
+        "residuals": residuals,
+        "applicable_effects": names,
+        "evidence_ranking": ranked,
+        "candidates": candidates,
+        "selected": selected,
+        "extended": {"effects": selected, "train": ext_tr, "heldout": ext_te, "train_rmse": ext_tr["rmse"], "heldout_rmse": ext_te["rmse"],
+                     "information_criteria": information_criteria(chosen, split.train),
+                     "parameters": {n: _effect_params(chosen.get(n)) for n in selected},
+                     "residuals_heldout": {"whiteness": whiteness_report(ext_res_te, np.concatenate([s.u[s.mask] for s in split.test]))}},
+        "improvement": {"heldout_rmse_ratio": ext_te["rmse"] / base_te["rmse"] if base_te["rmse"] > 0 else 1.0,
+                        "heldout_rmse_reduction_percent": 100.0 * (1.0 - ext_te["rmse"] / base_te["rmse"]) if base_te["rmse"] > 0 else 0.0,
+                        "heldout_e_r_before": base_te["e_r_percent"], "heldout_e_r_after": ext_te["e_r_percent"]},
+        "strongest_remaining_correlate": strongest,
+        "settings": {"max_candidates": max_candidates, "min_gain": min_gain, "max_effects": max_effects, "p_threshold": p_threshold},
+        "seconds": time.time() - t_start,
+    }
+    result["_residual_arrays"] = {"base_train": res_tr, "base_heldout": res_te, "ext_train": ext_res_tr, "ext_heldout": ext_res_te}
+    unwrapped = chosen if selected else base.base
+    return result, base.base, unwrapped, split
+
+
+def resid_after(model, split, resid):
+    sigs = {}
+    for s in split.test:
+        yh = simulate_segment(model, s)
+        cs = candidate_signals(s.time, s.u, yh, s.dt, extra=s.extra)
+        for k, v in cs.items():
+            sigs.setdefault(k, []).append(v[s.mask])
+    sigs = {k: np.concatenate(v) for k, v in sigs.items() if len(v) == len(split.test)}
+    return signal_correlations(resid, sigs)
+
+
+def _strongest_correlate(corrs):
+    if not corrs:
+        return None
+    name = max(corrs, key=lambda k: abs(corrs[k]["corr"]))
+    return {"signal": name, **corrs[name]}
+
+
+def _effect_params(e):
+    if e is None:
+        return {}
+    return {k: float(np.asarray(getattr(e, k))) for k in e.parameters if hasattr(e, k)}
+
+
+# -- synthetic records with an undeclared effect (tests, experiments) ------------------
+
+#: Random strength ranges of the synthetic effects (chosen to be clearly above 3 um noise).
+SYNTHETIC_STRENGTH = {
+    "delay": "tau ~ U(2, 8) s",
+    "ambient_drift": "drift ~ +-U(0.005, 0.02) q_ref per 1000 s",
+    "resistance_tc": "beta ~ U(0.2, 0.6)",
+    "asymmetric_cooling": "log_ratio ~ +-U(0.3, 0.7)",
+    "nonlinear_cooling": "gamma ~ U(0.2, 0.6)",
+    "rate_dependence": "c ~ U(0.5, 1.5)",
+    "creep": "g ~ U(0.08, 0.2), tau ~ U(100, 400) s",
+    "output_saturation": "m = output mid-level, w = half output range x U(0.9, 1.3)",
+    "load_dependence": "load: piecewise-constant steps in [1, 3] every 150-400 s; a ~ +-U(0.05, 0.15), b ~ +-U(0.05, 0.15) mm",
+}
+
+
+def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.003, order=("steps", "main_loop", "minor_loop")):
+    """Record from the true cascade plus one effect (``effect=None``: none), seeded; returns ``(Record, true_model)``.
+
+    ``drives`` is ``datasets/generate.py``'s ``drives()`` dict; the drives are
+    concatenated in ``order`` (all start and end at 0 V).
+    """
+    from ._data import Record
+
+    rng = np.random.default_rng(seed)
+    u = np.concatenate([np.asarray(drives[k][1], float) for k in order])
+    t = np.arange(u.size) * dt
+    y_base = np.asarray(_sim(ExtendedModel(truth, ()), jnp.asarray(u), jnp.asarray(dt), None))
+    lo, hi = float(y_base.min()), float(y_base.max())
+    a = jnp.asarray
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    extra, load = {}, None
+    if effect is None:
+        eff = None
+    elif effect == "delay":
+        eff = Delay(tau=a(rng.uniform(2, 8)))
+    elif effect == "ambient_drift":
+        eff = AmbientDrift(drift=a(sign * rng.uniform(0.005, 0.02)))
+    elif effect == "resistance_tc":
+        eff = ResistanceTC(beta=a(rng.uniform(0.2, 0.6)))
+    elif effect == "asymmetric_cooling":
+        eff = AsymmetricCooling(log_ratio=a(sign * rng.uniform(0.3, 0.7)))
+    elif effect == "nonlinear_cooling":
+        eff = NonlinearCooling(gamma=a(rng.uniform(0.2, 0.6)))
+    elif effect == "rate_dependence":
+        eff = RateDependence(c=a(rng.uniform(0.5, 1.5)))
+    elif effect == "creep":
+        eff = Creep(g=a(rng.uniform(0.08, 0.2)), tau=a(rng.uniform(100, 400)))
+    elif effect == "output_saturation":
+        eff = OutputSaturation(m=a(0.5 * (lo + hi)), w=a(0.5 * (hi - lo) * rng.uniform(0.9, 1.3)))
+    elif effect == "load_dependence":
+        load = np.empty(u.size)
+        i = 0
+        while i < u.size:
+            n = int(rng.uniform(150, 400) / dt)
+            load[i : i + n] = rng.uniform(1.0, 3.0)
+            i += n
+        extra["load_N"] = load
+        eff = LoadDependence(a=a(sign * rng.uniform(0.05, 0.15)), b=a((1 if rng.random() < 0.5 else -1) * rng.uniform(0.05, 0.15)),
+                             load_ref=a(float(load.mean())), load_scale=a(float(load.std())))
+    else:
+        raise UserInputError(f"unknown effect {effect!r}")
+    true = ExtendedModel(truth, () if eff is None else (eff,))
+    y = np.asarray(_sim(true, jnp.asarray(u), jnp.asarray(dt), None if load is None else jnp.asarray(load)))
+    y = y + noise_sd * rng.standard_normal(y.shape)
+    rec = Record.from_arrays(t, u, y, input_name="voltage_V", output_name="displacement_mm", extra=extra)
+    return rec, true

@@ -1,0 +1,388 @@
+"""Catalogue of physical effects that extend the base cascade (issue 6).
+
+`ExtendedModel(base, effects)` composes a base model (a `Cascade`, or a bare
+`EUPI` for rate-free records and non-voltage inputs) with effect modules.  Each
+effect is an `equinox.Module` registered for JSON, so an extended model saves,
+loads and runs with ``smafl simulate`` like any other model.  The pipeline is
+
+    u --delay--> x --thermal (+ resistance_tc, asymmetric_cooling,
+    nonlinear_cooling, ambient_drift)--> u_eff --EUPI (+ rate_dependence)--> H
+      --creep--> --output_saturation--> --load_dependence--> y
+
+Thermal effects are written on the thermal state in *voltage-squared units*
+``q = theta k1 / k2`` (the steady-state value of ``q`` is the applied ``U^2``),
+which removes the unidentifiable ``k2`` and gives every effect parameter a
+scale: ``q_ref = u_span^2`` of the EUPI.  With ``q`` the base model is
+
+    dq/dt = k1 (U^2 - q),    u_eff = sqrt(q)
+
+and the extended thermal model is
+
+    dq/dt = k1 rho(dir) [ U^2 h(q) - q c(q) + q_amb(t) ]
+
+with ``h = 1 / (1 + beta q / q_ref)`` (resistance_tc), ``c = 1 + gamma q / q_ref``
+(nonlinear_cooling), ``rho = exp(log_ratio)`` while cooling (asymmetric_cooling)
+and ``q_amb = drift q_ref t / 1000 s`` (ambient_drift).  It is integrated with
+the exact first-order hold of the base model, the nonlinear coefficients frozen
+at the previous state (a locally linear step that stays stable for any dt and
+reduces to the base model exactly when the effects vanish).
+
+For a bare-EUPI base (temperature input, quasi-static voltage) the thermal
+effects do not apply; ``ambient_drift`` then shifts the input by
+``drift u_span t / 1000 s``.
+
+``load_dependence`` needs a load signal: ``simulate(u, dt, load=L)``; without
+one (``smafl simulate``) the model predicts at its reference load.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _config  # noqa: F401
+from ._cascade import Cascade
+from ._constraints import positive
+from ._eupi import EUPI
+from ._io import register_model
+from ._operators import consistent_initial_state
+from ._thermal import _safe_sqrt
+
+__all__ = [
+    "ExtendedModel",
+    "EFFECTS",
+    "EFFECT_NAMES",
+    "Delay",
+    "AmbientDrift",
+    "ResistanceTC",
+    "AsymmetricCooling",
+    "NonlinearCooling",
+    "RateDependence",
+    "Creep",
+    "OutputSaturation",
+    "LoadDependence",
+    "effect_names",
+    "fractional_delay",
+]
+
+#: Time scale of drift parameters (s): ``drift`` is the change per 1000 s.
+DRIFT_TIME = 1000.0
+#: Rate scale (s): rate_dependence uses ``|ds/dt| * RATE_TIME`` (s normalised input).
+RATE_TIME = 100.0
+
+
+class Effect(eqx.Module):
+    """Base class: ``name`` (catalogue name), ``needs`` (what the base must have)."""
+
+    name: ClassVar[str] = ""
+    needs: ClassVar[tuple] = ()  # "thermal", "time", "load"
+    physics: ClassVar[str] = ""
+    parameters: ClassVar[dict] = {}
+
+
+@register_model
+class Delay(Effect):
+    """Transport delay of the drive (dead time of the driver, sensor or heat conduction)."""
+
+    name: ClassVar[str] = "delay"
+    needs: ClassVar[tuple] = ("time",)
+    physics: ClassVar[str] = "The output responds to the input tau seconds late (amplifier/DAQ latency, heat conduction from the SMA wire into the polymer, sensor filtering)."
+    parameters: ClassVar[dict] = {"tau": "delay in seconds (> 0), fractional delays by linear interpolation"}
+    tau: jnp.ndarray = positive()
+
+
+@register_model
+class AmbientDrift(Effect):
+    """Slow drift of the ambient (thermal equilibrium) during the record."""
+
+    name: ClassVar[str] = "ambient_drift"
+    needs: ClassVar[tuple] = ("time",)
+    physics: ClassVar[str] = "The ambient temperature (or the rest temperature of the actuator) drifts linearly during the record, shifting the thermal state the hysteresis sees."
+    parameters: ClassVar[dict] = {"drift": "change of the thermal state per 1000 s in units of q_ref = u_span^2 (cascade) or of the input span (EUPI base); signed"}
+    drift: jnp.ndarray
+
+
+@register_model
+class ResistanceTC(Effect):
+    """Temperature coefficient of the wire resistance: Joule heating falls as the wire warms."""
+
+    name: ClassVar[str] = "resistance_tc"
+    needs: ClassVar[tuple] = ("thermal",)
+    physics: ClassVar[str] = "R = R0 (1 + beta q / q_ref): at constant voltage the heating power U^2/R falls as the wire warms, so hot states are reached more slowly and saturate lower."
+    parameters: ClassVar[dict] = {"beta": "relative resistance increase at q = q_ref (> 0)"}
+    beta: jnp.ndarray = positive()
+
+
+@register_model
+class AsymmetricCooling(Effect):
+    """Different thermal time constants for heating and cooling."""
+
+    name: ClassVar[str] = "asymmetric_cooling"
+    needs: ClassVar[tuple] = ("thermal",)
+    physics: ClassVar[str] = "Cooling (heat loss to a still environment, latent heat of the reverse transformation) runs at a different rate than Joule heating: the rate is k1 exp(log_ratio) while the state falls."
+    parameters: ClassVar[dict] = {"log_ratio": "log of cooling rate / heating rate (signed)"}
+    log_ratio: jnp.ndarray
+
+
+@register_model
+class NonlinearCooling(Effect):
+    """Convective/radiative cooling that grows faster than linearly with temperature."""
+
+    name: ClassVar[str] = "nonlinear_cooling"
+    needs: ClassVar[tuple] = ("thermal",)
+    physics: ClassVar[str] = "Heat loss k1 q (1 + gamma q / q_ref): natural convection and radiation make hot states cool faster (and saturate lower) than Newton's law."
+    parameters: ClassVar[dict] = {"gamma": "relative extra loss at q = q_ref (> 0)"}
+    gamma: jnp.ndarray = positive()
+
+
+@register_model
+class RateDependence(Effect):
+    """Rate-dependent hysteresis: loop width grows with the input rate."""
+
+    name: ClassVar[str] = "rate_dependence"
+    needs: ClassVar[tuple] = ("time",)
+    physics: ClassVar[str] = "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the polymer, rate-dependent phase transformation)."
+    parameters: ClassVar[dict] = {"c": "threshold widening per unit normalised rate (per 100 s) (> 0)"}
+    c: jnp.ndarray = positive()
+
+
+@register_model
+class Creep(Effect):
+    """Slow viscoelastic relaxation (creep) of the polymer."""
+
+    name: ClassVar[str] = "creep"
+    needs: ClassVar[tuple] = ("time",)
+    physics: ClassVar[str] = "A fraction g of the output follows the hysteresis output through a slow first-order lag (time constant tau, seconds to minutes): after a step the output keeps relaxing while the input is held."
+    parameters: ClassVar[dict] = {"g": "fraction of the output that creeps (signed)", "tau": "creep time constant in seconds (> 0)"}
+    g: jnp.ndarray
+    tau: jnp.ndarray = positive()
+
+
+@register_model
+class OutputSaturation(Effect):
+    """Output saturation: steep sigmoidal SMA transformation between two stroke limits."""
+
+    name: ClassVar[str] = "output_saturation"
+    needs: ClassVar[tuple] = ()
+    physics: ClassVar[str] = "The stroke is bounded by the completed martensite/austenite transformation: y = m + w tanh((H - m) / w), a monotone sigmoid between m - w and m + w that tends to the identity as w grows."
+    parameters: ClassVar[dict] = {"m": "centre of the saturation map (output units)", "w": "half-width: the output stays within m +- w (> 0)"}
+    m: jnp.ndarray
+    w: jnp.ndarray = positive()
+
+
+@register_model
+class LoadDependence(Effect):
+    """Stroke and offset change with the mechanical load (needs a load column)."""
+
+    name: ClassVar[str] = "load_dependence"
+    needs: ClassVar[tuple] = ("load",)
+    physics: ClassVar[str] = "A heavier load stretches the actuator (offset b) and changes the recoverable stroke (gain a): y = H (1 + a l) + b l with l = (L - load_ref) / load_scale."
+    parameters: ClassVar[dict] = {"a": "relative stroke change per load_scale (signed)", "b": "offset per load_scale (signed)", "load_ref": "reference load (fixed)", "load_scale": "load scale (fixed)"}
+    a: jnp.ndarray
+    b: jnp.ndarray
+    load_ref: jnp.ndarray
+    load_scale: jnp.ndarray
+
+
+EFFECTS = {
+    cls.name: cls
+    for cls in (Delay, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, RateDependence, Creep, OutputSaturation, LoadDependence)
+}
+EFFECT_NAMES = tuple(EFFECTS)
+
+
+def effect_names():
+    """Catalogue names in pipeline order."""
+    return EFFECT_NAMES
+
+
+def fractional_delay(x, delay_samples):
+    """``x(k - d)`` with linear interpolation for fractional ``d >= 0``; before the start, ``x(0)``."""
+    n = x.shape[0]
+    pos = jnp.clip(jnp.arange(n, dtype=jnp.float64) - delay_samples, 0.0, n - 1.0)
+    i0 = jnp.floor(pos)
+    frac = pos - i0
+    i0 = i0.astype(jnp.int32)
+    i1 = jnp.minimum(i0 + 1, n - 1)
+    return x[i0] * (1.0 - frac) + x[i1] * frac
+
+
+def _lowpass(x, dt, tau):
+    """Exact first-order lag of a ZOH signal, state starting at ``x(0)`` (columns filtered independently)."""
+    a = jnp.exp(-dt / tau)
+
+    def step(z, xk):
+        z = a * z + (1.0 - a) * xk
+        return z, z
+
+    _, z = jax.lax.scan(step, x[0], x)
+    return z
+
+
+def _eupi_operators(eupi, s, rscale=None):
+    """EUPI operator bank on normalised input ``s``; thresholds optionally scaled per sample."""
+    if rscale is None:
+        return eupi.operators(s * eupi.u_span + eupi.u_ref)
+    r, a = eupi._bank()
+    if eupi.init == "descended":
+        y0 = a * (s[0] + r * rscale[0])
+    elif eupi.init == "consistent":
+        y0 = consistent_initial_state(s[0], r * rscale[0], a)
+    else:
+        y0 = jnp.zeros_like(r)
+
+    def step(carry, xs):
+        sk, fk = xs
+        rk = r * fk
+        y = jnp.maximum(sk - rk, jnp.minimum(a * (sk + rk), carry))
+        return y, y
+
+    _, ys = jax.lax.scan(step, y0, (s, rscale))
+    return ys
+
+
+@register_model
+class ExtendedModel(eqx.Module):
+    """Base model (`Cascade` or `EUPI`) composed with catalogue effects; fitted jointly."""
+
+    base: eqx.Module
+    effects: tuple = ()
+
+    def __check_init__(self):
+        if not isinstance(self.base, (Cascade, EUPI)):
+            raise ValueError(f"ExtendedModel base must be a Cascade or an EUPI, got {type(self.base).__name__}")
+        names = [getattr(e, "name", None) for e in self.effects]
+        for e, n in zip(self.effects, names):
+            if n not in EFFECTS or not isinstance(e, EFFECTS[n]):
+                raise ValueError(f"unknown effect {type(e).__name__}; catalogue: {list(EFFECTS)}")
+        if len(set(names)) != len(names):
+            raise ValueError(f"each effect may appear once, got {names}")
+        for e in self.effects:
+            if "thermal" in e.needs and not isinstance(self.base, Cascade):
+                raise ValueError(f"effect {e.name!r} acts on the thermal model and needs a Cascade base")
+
+    # -- structure -------------------------------------------------------
+    @property
+    def hysteresis(self):
+        return self.base if isinstance(self.base, EUPI) else self.base.hysteresis
+
+    @property
+    def effect_names(self):
+        return [e.name for e in self.effects]
+
+    def get(self, name):
+        for e in self.effects:
+            if e.name == name:
+                return e
+        return None
+
+    def with_hysteresis(self, eupi):
+        if isinstance(self.base, EUPI):
+            return eqx.tree_at(lambda m: m.base, self, eupi)
+        return eqx.tree_at(lambda m: m.base.hysteresis, self, eupi)
+
+    # -- pipeline --------------------------------------------------------
+    def _q_ref(self):
+        h = self.hysteresis
+        return (h.u_span + h.u_ref) ** 2
+
+    def _thermal(self, x, dt):
+        """Thermal state in V^2 units ``q`` for drive ``x`` (see module docstring)."""
+        th = self.base.thermal
+        k1 = th.k1
+        qref = self._q_ref()
+        res, asym, nlc, amb = (self.get(n) for n in ("resistance_tc", "asymmetric_cooling", "nonlinear_cooling", "ambient_drift"))
+        n = x.shape[0]
+        t = jnp.arange(n, dtype=jnp.float64) * dt
+        q_amb = amb.drift * qref * t / DRIFT_TIME if amb is not None else jnp.zeros(n)
+        q0 = x[0] ** 2 if th.init == "steady" else jnp.zeros_like(x[0])
+        beta = res.beta / qref if res is not None else None
+        gamma = nlc.gamma / qref if nlc is not None else None
+        rho = jnp.exp(asym.log_ratio) if asym is not None else None
+
+        def step(q, xs):
+            xk, qa = xs
+            heat = xk * xk
+            if beta is not None:
+                heat = heat / (1.0 + beta * jnp.maximum(q, 0.0))
+            c = 1.0 + gamma * jnp.maximum(q, 0.0) if gamma is not None else 1.0
+            target = heat / c + qa
+            rate = k1 * c
+            if rho is not None:
+                rate = jnp.where(target < q, rate * rho, rate)
+            a = jnp.exp(-rate * dt)
+            q = a * q + (1.0 - a) * target
+            return q, q
+
+        _, q = jax.lax.scan(step, q0, (x, q_amb))
+        return q
+
+    def hysteresis_input(self, u, dt):
+        """Signal the EUPI sees (after delay, thermal model and drift)."""
+        u = jnp.asarray(u, dtype=jnp.float64)
+        dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
+        d = self.get("delay")
+        x = fractional_delay(u, d.tau / dt) if d is not None else u
+        if isinstance(self.base, Cascade):
+            return _safe_sqrt(self._thermal(x, dt))
+        amb = self.get("ambient_drift")
+        if amb is not None:
+            t = jnp.arange(x.shape[0], dtype=jnp.float64) * dt
+            x = x + amb.drift * self.hysteresis.u_span * t / DRIFT_TIME
+        return x
+
+    def states(self, u, dt):
+        """Internal signals: ``x`` (hysteresis input), ``q`` (thermal state, V^2, cascade only), ``y``."""
+        x = self.hysteresis_input(u, dt)
+        out = {"x": x, "y": self.simulate(u, dt)}
+        if isinstance(self.base, Cascade):
+            out["q"] = x * x
+        return out
+
+    def features(self, u, dt):
+        """Design matrix of the EUPI gains after rate dependence and creep (linear in the gains)."""
+        dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
+        eupi = self.hysteresis
+        x = self.hysteresis_input(u, dt)
+        s = eupi.normalise(x)
+        rd = self.get("rate_dependence")
+        if rd is None:
+            ops = _eupi_operators(eupi, s)
+        else:
+            rate = jnp.abs(jnp.diff(s, prepend=s[:1])) / dt * RATE_TIME
+            ops = _eupi_operators(eupi, s, 1.0 + rd.c * rate)
+        npoly = np.shape(eupi.poly)[0]
+        powers = jnp.stack([s ** (m + 2) for m in range(npoly)], axis=-1).reshape(s.shape[0], npoly)
+        F = jnp.concatenate([s[:, None], ops, powers, jnp.ones_like(s)[:, None]], axis=1)
+        cr = self.get("creep")
+        if cr is not None:
+            F = F + cr.g * (_lowpass(F, dt, cr.tau) - F)
+        return F
+
+    def output_map(self, h, load=None):
+        """Output-side effects (saturation, load) applied to the linear output ``h``."""
+        sat = self.get("output_saturation")
+        y = h if sat is None else sat.m + sat.w * jnp.tanh((h - sat.m) / sat.w)
+        ld = self.get("load_dependence")
+        if ld is not None and load is not None:
+            l_ = (jnp.asarray(load, dtype=jnp.float64) - ld.load_ref) / ld.load_scale
+            y = y * (1.0 + ld.a * l_) + ld.b * l_
+        return y
+
+    def simulate(self, u, dt, load=None):
+        """Output for drive ``u`` sampled every ``dt`` s (``load``: optional load signal)."""
+        return self.output_map(self.features(u, dt) @ self.hysteresis.linear_weights(), load)
+
+
+class LoadBound(eqx.Module):
+    """An `ExtendedModel` with its load signal attached, so generic fitting sees ``simulate(u, dt)``."""
+
+    model: ExtendedModel
+    load: jnp.ndarray
+
+    def simulate(self, u, dt):
+        return self.model.simulate(u, dt, load=self.load)

@@ -1,0 +1,285 @@
+"""`smafl paper`: the paper's whole story on the bundled records, in one run and one report.
+
+Sections (each produces numbers, figures and a short verdict for the report):
+1. EUPI identification in the voltage domain (paper figs. 9-10, e_r vs 6.3 %);
+2. Joule heat model alone, U^2 -> displacement (figs. 11-12, K1/K2 and the 0.510 mm max error);
+3. joint cascade fit (thermal + EUPI) with held-out validation and recovery of the known truth;
+4. posterior of the cascade (emcee) with derived quantities;
+5. PID vs composite PID in closed loop (figs. 14-15, e_mean table);
+6. residual diagnosis: on the bundled record, and on real measured SMA data when present.
+Every number in the report is computed by this run; nothing is copied from a file
+except the paper's own values, which are labelled as such.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import _config  # noqa: F401
+
+__all__ = ["run_paper", "PAPER_VALUES"]
+
+#: Numbers quoted by Xiang et al. (2017), shown next to ours (never used in computations).
+PAPER_VALUES = {
+    "eupi_e_r_percent": 6.3,
+    "k1": 0.04988,
+    "k2": 0.04172,
+    "joule_max_error_mm": 0.510,
+    "e_mean_sim": {("composite", "sine"): 0.0027, ("composite", "step"): 0.0004, ("pid", "sine"): 0.0030, ("pid", "step"): 0.0009},
+    "e_mean_exp": {("composite", "sine"): 0.0517, ("composite", "step"): 0.0326, ("pid", "sine"): 0.0934, ("pid", "step"): 0.1029},
+}
+
+
+class _Progress:
+    """Numbered progress lines on stderr with elapsed time."""
+
+    def __init__(self, total, stream=None):
+        self.total, self.k, self.t0 = total, 0, time.perf_counter()
+        self.stream = stream or sys.stderr
+
+    def __call__(self, what):
+        self.k += 1
+        print(f"[{self.k}/{self.total} {time.perf_counter() - self.t0:6.1f}s] {what}", file=self.stream, flush=True)
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path):
+    from ._io import atomic_savefig
+
+    atomic_savefig(fig, path)
+    _plt().close(fig)
+    return path
+
+
+def default_datasets_dir():
+    """The repository's bundled `datasets/` folder."""
+    return Path(__file__).resolve().parents[1] / "datasets"
+
+
+def default_real_dir():
+    """Where real measured data is read in place (beside the repository)."""
+    return Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+
+
+def _loop_figure(path, panels, title):
+    """Input-output loops: panels = [(label, u, y_meas, y_model)]."""
+    plt = _plt()
+    fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
+    for ax, (label, u, y, yhat) in zip(axes[0], panels):
+        ax.plot(u, y, ".", ms=2, color="0.5", label="measured")
+        ax.plot(u, yhat, "-", lw=1.2, color="C3", label="model")
+        ax.set_xlabel("input")
+        ax.set_ylabel("output")
+        ax.set_title(label)
+        ax.legend(loc="upper left")
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def _time_figure(path, panels, title):
+    """Time series with error: panels = [(label, t, y_meas, y_model)]."""
+    plt = _plt()
+    fig, axes = plt.subplots(2, len(panels), figsize=(5 * len(panels), 5), squeeze=False, sharex="col")
+    for j, (label, t, y, yhat) in enumerate(panels):
+        axes[0, j].plot(t, y, color="0.5", lw=1, label="measured")
+        axes[0, j].plot(t, yhat, color="C3", lw=1, label="model")
+        axes[0, j].set_title(label)
+        axes[0, j].legend(loc="upper left")
+        axes[1, j].plot(t, y - yhat, color="C0", lw=0.8)
+        axes[1, j].axhline(0, color="k", lw=0.5)
+        axes[1, j].set_xlabel("time (s)")
+        axes[1, j].set_ylabel("error")
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def section_eupi(recs, out, quick):
+    """Paper figs. 9-10: the voltage-domain EUPI, fitted on the main loop, checked on the minor loop."""
+    import smafl_jax as sj
+
+    train, val = recs["main_loop"], recs["minor_loop"]
+    model0 = sj.EUPI.from_range(0.0, float(max(train.u.max(), val.u.max())))
+    res = sj.fit(model0, train, max_steps=60 if quick else 300)
+    m_tr = sj.metrics(train.y, sj.simulate(res.model, train.u, train.dt))
+    m_va = sj.metrics(val.y, sj.simulate(res.model, val.u, val.dt))
+    lin = sj.init_linear(model0, train)  # the paper's own estimate: constrained LS only
+    m_lin = sj.metrics(train.y, sj.simulate(lin, train.u, train.dt))
+    fig = _loop_figure(
+        out / "fig09_10_eupi_loops.png",
+        [
+            ("main loop (train)", train.u, train.y, np.asarray(sj.simulate(res.model, train.u, train.dt))),
+            ("minor loop (held out)", val.u, val.y, np.asarray(sj.simulate(res.model, val.u, val.dt))),
+        ],
+        "EUPI in the voltage domain (paper figs. 9-10)",
+    )
+    sj.save_model(out / "eupi_fit.json", res.model, metrics={"train": m_tr, "validation": m_va}, solver={"converged": res.converged, "n_steps": res.n_steps, "message": res.message})
+    return {
+        "train": m_tr,
+        "validation": m_va,
+        "linear_only_train": m_lin,
+        "fit": {"converged": res.converged, "n_steps": res.n_steps, "message": res.message},
+        "figures": [fig],
+    }
+
+
+def section_joule(recs, out, quick):
+    """Paper figs. 11-12: the Joule heat model alone, U^2 -> displacement, on the step record."""
+    import jax.numpy as jnp
+
+    import smafl_jax as sj
+
+    rec = recs["steps"]
+    model0 = sj.JouleThermal(k1=jnp.asarray(sj.PAPER_K1), k2=jnp.asarray(sj.PAPER_K2))
+    res = sj.fit(model0, rec, init=None, max_steps=100 if quick else 400)
+    yhat = np.asarray(sj.simulate(res.model, rec.u, rec.dt))
+    m = sj.metrics(rec.y, yhat)
+    y_paper = np.asarray(sj.simulate(model0, rec.u, rec.dt))
+    m_paper = sj.metrics(rec.y, y_paper)
+    fig = _time_figure(
+        out / "fig11_12_joule.png",
+        [("Joule model fitted", rec.time, rec.y, yhat), ("paper's K1, K2 as they are", rec.time, rec.y, y_paper)],
+        "Joule heat model, U^2 -> displacement (paper figs. 11-12)",
+    )
+    sj.save_model(out / "joule_fit.json", res.model, metrics={"train": m})
+    return {
+        "k1": float(res.model.k1),
+        "k2": float(res.model.k2),
+        "metrics": m,
+        "paper_params_metrics": m_paper,
+        "fit": {"converged": res.converged, "n_steps": res.n_steps, "message": res.message},
+        "figures": [fig],
+    }
+
+
+def section_cascade(recs, out, quick, truth):
+    """Joint cascade fit on main loop + steps, validated on the minor loop; recovery of the truth."""
+    import smafl_jax as sj
+
+    train = [recs["main_loop"], recs["steps"]]
+    val = recs["minor_loop"]
+    model0 = sj.Cascade.from_range(float(max(r.u.max() for r in recs.values())))
+    res = sj.fit(model0, train, max_steps=80 if quick else 400)
+    yv = np.asarray(sj.simulate(res.model, val.u, val.dt))
+    m_va = sj.metrics(val.y, yv)
+    y_tr = [np.asarray(sj.simulate(res.model, r.u, r.dt)) for r in train]
+    m_tr = sj.metrics(np.concatenate([r.y for r in train]), np.concatenate(y_tr))
+    fig = _time_figure(
+        out / "cascade_fit.png",
+        [("steps (train)", train[1].time, train[1].y, y_tr[1]), ("minor loop (held out)", val.time, val.y, yv)],
+        "Joint cascade fit: voltage -> heat -> EUPI -> displacement",
+    )
+    fit_doc = {
+        "metrics": {"train": m_tr, "validation": m_va},
+        "data": {
+            "file": val.name,
+            "path": val.path,
+            "sha256": val.sha256,
+            "input_column": val.input_name,
+            "output_column": val.output_name,
+            "sample_time_s": val.dt,
+            "n_samples": len(val),
+            "train_files": [r.name for r in train],
+            "validation_files": [val.name],
+        },
+        "settings": {"model": "cascade", "quick": quick},
+    }
+    sj.save_model(out / "fit.json", res.model, **fit_doc)
+    return {
+        "model": res.model,
+        "train": m_tr,
+        "validation": m_va,
+        "k1": float(res.model.thermal.k1),
+        "k1_truth": float(truth.thermal.k1) if truth is not None else None,
+        "fit": {"converged": res.converged, "n_steps": res.n_steps, "message": res.message},
+        "figures": [fig],
+        "fit_json": str(out / "fit.json"),
+    }
+
+
+def _metric_row(label, m, extra=()):
+    return [label, m["rmse"], m["e_r_percent"], m["max_abs_error"], m["mean_abs_error"], *extra]
+
+
+METRIC_HEADERS = ["", "RMSE (mm)", "e_r (%)", "max |err| (mm)", "mean |err| (mm)"]
+
+
+def _write_eupi_joule_cascade(rep, s1, s2, s3):
+    P = PAPER_VALUES
+    rep.heading("1. EUPI hysteresis model (paper figs. 9-10)")
+    rep.text(
+        "The EUPI of eq. (2) fitted in the voltage domain, as the paper does, on the bundled main loop "
+        "(two slow 0 -> 7.4 -> 0 V cycles) and checked on the held-out minor-loop record. Gains start from "
+        "the paper's constrained least squares and are then refined jointly."
+    )
+    rep.table(
+        METRIC_HEADERS + ["paper e_r (%)"],
+        [
+            _metric_row("main loop, train", s1["train"], [P["eupi_e_r_percent"]]),
+            _metric_row("main loop, constrained LS only", s1["linear_only_train"], [P["eupi_e_r_percent"]]),
+            _metric_row("minor loop, held out", s1["validation"], ["–"]),
+        ],
+    )
+    for f in s1["figures"]:
+        rep.figure(f, "EUPI model over the measured loops (left: train, right: held out)")
+    verdict = "reproduced in kind" if s1["train"]["e_r_percent"] < 2 * P["eupi_e_r_percent"] else "not reproduced"
+    rep.text(
+        f"Verdict: {verdict}. A rate-independent EUPI reaches e_r = {fmt(s1['train']['e_r_percent'], 3)} % here "
+        f"(paper: 6.3 % on its own rig). On these records the residual left is the thermal lag, which the "
+        "voltage-domain EUPI cannot represent; section 3 removes it."
+    )
+    rep.heading("2. Joule heat model (paper figs. 11-12, eq. 7)")
+    rep.text(
+        "The first-order lag from U^2 to displacement fitted alone on the step record, next to the paper's "
+        "identified values. The paper's K2/K1 = 0.836 per V^2 would put the displacement at 46 mm for 7.4 V on a "
+        "joint that moves at most 6 mm, so the paper's M' cannot be U^2 in volts as printed; its K1 (the time "
+        "constant) is the comparable quantity."
+    )
+    rep.table(
+        ["", "K1 (1/s)", "K2", "time constant 1/K1 (s)", "max |err| (mm)", "RMSE (mm)"],
+        [
+            ["this run (fitted)", s2["k1"], s2["k2"], 1 / s2["k1"], s2["metrics"]["max_abs_error"], s2["metrics"]["rmse"]],
+            ["paper's values on this record", P["k1"], P["k2"], 1 / P["k1"], s2["paper_params_metrics"]["max_abs_error"], s2["paper_params_metrics"]["rmse"]],
+            ["paper (own rig)", P["k1"], P["k2"], 1 / P["k1"], P["joule_max_error_mm"], "–"],
+        ],
+    )
+    for f in s2["figures"]:
+        rep.figure(f, "Joule model alone: fitted (left) and with the paper's K1, K2 (right)")
+    rep.text(
+        f"Verdict: the lag alone leaves a max error of {fmt(s2['metrics']['max_abs_error'], 3)} mm on this record "
+        "(paper: 0.510 mm on its rig): a linear lag from U^2 cannot carry the hysteresis and the saturation of the "
+        "actuator, so its fitted K1 is biased; the cascade below identifies K1 with the hysteresis in place."
+    )
+    rep.heading("3. Joint cascade fit: voltage -> heat -> EUPI -> displacement")
+    truth_txt = (
+        f" The bundled data were generated with K1 = {fmt(s3['k1_truth'])} 1/s; the fit recovers "
+        f"K1 = {fmt(s3['k1'])} 1/s ({fmt(100 * (s3['k1'] / s3['k1_truth'] - 1), 3)} %)."
+        if s3.get("k1_truth")
+        else ""
+    )
+    rep.text(
+        "Thermal K1 and all EUPI gains fitted jointly on the main loop and the step record; the minor-loop record is "
+        "held out. K2 is not identifiable from displacement in the cascade (the hysteresis sees sqrt(theta K1/K2), "
+        "in which K2 cancels) and is held at the paper's value." + truth_txt
+    )
+    rep.table(METRIC_HEADERS, [_metric_row("train (main loop + steps)", s3["train"]), _metric_row("held out (minor loop)", s3["validation"])])
+    for f in s3["figures"]:
+        rep.figure(f, "Cascade: measured vs model over time, with the error below")
+
+
+def fmt(x, digits=4):
+    from ._reportdoc import fmt as _fmt
+
+    return _fmt(x, digits)

@@ -1,0 +1,124 @@
+"""Writing a diagnosis: diagnosis.json, base_fit.json / extended_fit.json (fit.json format), report.md, plots."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model, to_jsonable
+
+__all__ = ["write_diagnosis", "versions"]
+
+
+def versions():
+    import equinox
+    import jax
+    import scipy
+
+    from . import __version__
+
+    return {"smafl_jax": __version__, "jax": jax.__version__, "equinox": equinox.__version__, "numpy": np.__version__, "scipy": scipy.__version__}
+
+
+def _fit_doc(rec, res, which):
+    part = res["base"] if which == "base" else res["extended"]
+    return {
+        "metrics": {"train": part["train"], "validation": part["heldout"]},
+        "data": {"file": rec.name + ".csv" if rec.path else rec.name, "path": rec.path, "sha256": rec.sha256, "input_column": rec.input_name,
+                 "output_column": rec.output_name, "sample_time_s": rec.dt, "n_samples": len(rec)},
+        "settings": {"command": "diagnose", "split": res["split"], "effects": part.get("effects", []), "base_rule": res["base"]["rule"]},
+        "versions": versions(),
+        "solver": {"method": "variable projection: bounded least squares for the EUPI gains, Nelder-Mead for thermal/effect parameters"},
+    }
+
+
+def _plot(path, split, model_sim, title):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ._residuals import autocorrelation
+
+    fig, ax = plt.subplots(3, 1, figsize=(10, 8))
+    t0 = 0.0
+    all_e = []
+    for kind, segs in (("train", split.train), ("held-out", split.test)):
+        for s in segs:
+            yh = model_sim(s)
+            x = t0 + np.arange(int(s.mask.sum()))
+            e = (s.y - yh)[s.mask]
+            all_e.append(e)
+            color = "C0" if kind == "train" else "C3"
+            ax[0].plot(x, s.y[s.mask], color="k", lw=0.8)
+            ax[0].plot(x, yh[s.mask], color=color, lw=0.8)
+            ax[1].plot(x, e, color=color, lw=0.8, label=kind if s is segs[0] else None)
+            t0 = x[-1] + 1 if x.size else t0
+    ax[0].set_ylabel("output (black: measured)")
+    ax[1].set_ylabel("residual")
+    ax[1].legend(loc="upper right")
+    ax[1].set_xlabel("sample (train blocks, then held-out blocks)")
+    e = np.concatenate(all_e)
+    rho = autocorrelation(e, min(100, e.size // 3))
+    ax[2].bar(np.arange(rho.size), rho, width=0.8)
+    b = 1.96 / np.sqrt(e.size)
+    ax[2].axhline(b, color="r", ls="--", lw=0.8)
+    ax[2].axhline(-b, color="r", ls="--", lw=0.8)
+    ax[2].set_ylabel("residual ACF")
+    ax[2].set_xlabel("lag (samples)")
+    fig.suptitle(title)
+    atomic_savefig(fig, path)
+    plt.close(fig)
+
+
+def _report_md(rec, res):
+    b, x = res["base"], res["extended"]
+    L = [f"# Diagnosis of `{rec.name}`", "",
+         f"- Base model: {b['rule']}", f"- Split: {res['split']['rule']}",
+         f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**", "",
+         "| model | train RMSE | held-out RMSE | held-out e_r (%) |", "|---|---|---|---|",
+         f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
+         f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |", "",
+         "## Base residuals", ""]
+    for part in ("train", "heldout"):
+        w = res["residuals"][part]["whiteness"]
+        lb = w["ljung_box"] or {}
+        L.append(f"- {part}: Ljung-Box Q = {lb.get('Q', float('nan')):.1f} (p = {lb.get('p_value', float('nan')):.2g}); "
+                 f"{100 * w['acf_fraction_outside']:.0f} % of ACF lags outside +-{w['acf_bound']:.3f}; "
+                 f"max |ccf with input| {w['ccf_max_abs']:.2f} at lag {w['ccf_argmax_lag']}")
+    corr = res["residuals"]["train"]["signal_correlations"]
+    L += ["", "Correlation of the training residual with candidate signals (p on a Bartlett-effective n):", "",
+          "| signal | corr | n_eff | p |", "|---|---|---|---|"]
+    for k in sorted(corr, key=lambda k: -abs(corr[k]["corr"])):
+        L.append(f"| {k} | {corr[k]['corr']:+.3f} | {corr[k]['n_eff']:.0f} | {corr[k]['p_value']:.2g} |")
+    L += ["", "## Candidate effects (ranked by score-test evidence)", "",
+          "| effect | partial R2 | p | fitted | held-out RMSE | gain | dBIC | accepted | parameters |", "|---|---|---|---|---|---|---|---|---|"]
+    for c in res["candidates"]:
+        ev = c["evidence"]
+        if c.get("fitted"):
+            par = ", ".join(f"{k}={v:.4g}" for k, v in c["parameters"].items())
+            L.append(f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
+                     f"{c['delta_bic']:.1f} | {c['accepted']} | {par} |")
+        else:
+            L.append(f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | no | | | | | |")
+    s = res.get("strongest_remaining_correlate")
+    if s:
+        L += ["", f"Strongest remaining held-out residual correlate: `{s['signal']}` (corr {s['corr']:+.3f}, p {s['p_value']:.2g})."]
+    L += ["", "Plots: `residuals_before.png` (base model), `residuals_after.png` (extended model).", ""]
+    return "\n".join(L)
+
+
+def write_diagnosis(out, rec, res, base, ext, split):
+    """All outputs of ``smafl diagnose`` into folder ``out``."""
+    from ._diagnose import simulate_segment
+    from ._effects import ExtendedModel
+
+    arrays = res.pop("_residual_arrays", None)
+    atomic_write_json(out / "diagnosis.json", to_jsonable(res))
+    save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
+    save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
+    wrap = lambda m: m if isinstance(m, ExtendedModel) else ExtendedModel(m, ())  # noqa: E731
+    _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model")
+    _plot(out / "residuals_after.png", split, lambda s: simulate_segment(wrap(ext), s), f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})")
+    atomic_write_text(out / "report.md", _report_md(rec, res))
+    if arrays is not None:
+        res["_residual_arrays"] = arrays
