@@ -180,13 +180,15 @@ def update_readme(doc, readme):
     else:  # first time: the section ends where the next heading or marker starts
         cut = [i for i in (rest.find("\n## "), rest.find("\n<!-- section:")) if i >= 0]
         rest = rest[min(cut):] if cut else ""
-    atomic_write_text(readme, head + README_MARK + "\n" + body + "\n" + README_END + rest)
+    atomic_write_text(readme, head + README_MARK + "\n" + body.rstrip("\n") + "\n" + README_END + "\n\n" + rest.lstrip("\n"))
 
 
 def readme_section(doc):
     md = markdown(doc).split("\n")
     # drop the document title; demote section headings one level under "## Performance"
     body = [("###" + ln[2:]) if ln.startswith("## ") else ln for ln in md[2:]]
+    body = ["![cost vs record length and operator count (log-log)](benchmarks/results/scaling.png)"
+            if ln.startswith("Scaling (log-log)") else ln for ln in body]
     return "\n".join(["## Performance", "",
                       "Regenerate with `python -m benchmarks --readme` (about 6 min on 2 cores; `--quick` for a "
                       "smoke run, `--only operators` for one section). Full tables: `benchmarks/results/RESULTS.md`; "
@@ -201,6 +203,8 @@ def main(argv=None):
                    help=f"run only this section (repeatable; one of {', '.join(keys)}); other sections are kept from an earlier results.json in --out")
     p.add_argument("--out", default=str(HERE / "results"), help="output folder (default benchmarks/results)")
     p.add_argument("--readme", action="store_true", help="also rewrite README.md's performance section")
+    p.add_argument("--render", action="store_true",
+                   help="measure nothing: re-render RESULTS.md, scaling.png (and README with --readme) from --out/results.json")
     args = p.parse_args(argv)
 
     import json
@@ -208,6 +212,17 @@ def main(argv=None):
     from smafl_jax._io import atomic_write_json, atomic_write_text, prepare_out_dir, to_jsonable
 
     out = prepare_out_dir(args.out)
+    if args.render:
+        try:
+            doc = json.loads((out / "results.json").read_text())
+        except (OSError, ValueError) as exc:
+            raise SystemExit(f"--render needs {out / 'results.json'} from an earlier run: {exc}")
+        atomic_write_text(out / "RESULTS.md", markdown(doc))
+        scaling_plot(doc, out / "scaling.png")
+        if args.readme:
+            update_readme(doc, ROOT / "README.md")
+        progress(f"re-rendered {out / 'RESULTS.md'} from results.json")
+        return 0
     prev = {}
     if args.only and (out / "results.json").exists():
         try:

@@ -25,14 +25,16 @@ from ._io import (
     save_model,
 )
 from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, rmse
-from ._operators import consistent_initial_state, play, play_assoc, play_scan, play_step
+from ._operators import consistent_initial_state, play, play_assoc, play_scan, play_step, play_weighted
 from ._simulate import simulate, simulate_batch
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
 __version__ = "0.1.0"
 
 # --- identification (issue 3) ---
-from ._fit import FitResult, as_fit_data, default_trainable, fit, init_linear
+from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
+from ._joule_lag import JouleLag
+from ._split import split_masks
 # --- bayes (issue 4) ---
 from ._bayes import ChainTooShortWarning, Posterior, Prior, SampleRun, default_priors, diagnostics, load_priors, load_run, run_sampler, summarize
 # --- control (issue 5) ---

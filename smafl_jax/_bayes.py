@@ -46,6 +46,7 @@ from ._constraints import constrain, log_jacobian, positive, unconstrain
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._fit import as_fit_data, default_trainable
+from ._simulate import simulate
 from ._thermal import JouleThermal
 
 __all__ = [
@@ -287,18 +288,17 @@ class Posterior:
         self.model = model
         self.spec = spec
         if sigma is None:
-            res = np.concatenate([np.asarray(model.simulate(jnp.asarray(u), jnp.asarray(d))) - y for u, y, d in self.data])
+            res = np.concatenate([np.asarray(simulate(model, u, d)) - y for u, y, d in self.data])
             sigma = float(np.sqrt(np.mean(res**2))) if np.all(np.isfinite(res)) else 0.1 * yr
             sigma = max(sigma, 1e-6 * yr)
         raw = unconstrain(model)
-        raw_train, self._static = eqx.partition(raw, spec)
+        raw_train, static = eqx.partition(raw, spec)
         # floored zeros (e.g. NNLS gains) sit at softplus^-1(1e-10) ~ -23, far in the tail
         # of any prior; start them where the density has mass.
         raw_train = jax.tree_util.tree_map(lambda x: jnp.maximum(x, -7.0), raw_train)
         params = (raw_train, unconstrain(_Noise(jnp.asarray(float(sigma)))))
-        self.theta0, self._unravel = ravel_pytree(params)
-        self.theta0 = np.asarray(self.theta0)
-        leaves = jax.tree_util.tree_flatten_with_path(params)[0]
+        self.theta0 = np.asarray(ravel_pytree(params)[0])
+        leaves, treedef = jax.tree_util.tree_flatten_with_path(params)
         self.names_leaf = [_leaf_name(p) for p, _ in leaves]
         self.shapes_leaf = [tuple(np.shape(x)) for _, x in leaves]
         self.names = [n for name, s in zip(self.names_leaf, self.shapes_leaf) for n in _element_names(name, s)]
@@ -310,16 +310,102 @@ class Posterior:
         pri = default_priors(self.names_leaf, self.data)
         pri.update(user)
         self.priors = pri
-        self._prior_list = [pri[n] for n in self.names_leaf]
-        self._args = tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d)) for u, y, d in self.data)
-        self.n_traces = 0
-        self._batch = jax.jit(jax.vmap(self.log_prob))
+        self._d = _Density(
+            static=static,
+            args=tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d)) for u, y, d in self.data),
+            gain_scale=jnp.asarray(self.gain_scale),
+            treedef=jax.tree_util.tree_structure(params),
+            shapes=tuple(self.shapes_leaf),
+            priors=tuple(pri[n] for n in self.names_leaf),
+            noise=noise,
+            nu=float(nu),
+            linear=linear,
+            prior_only=bool(prior_only),
+        )
 
-    # -- pieces ------------------------------------------------------------
+    @property
+    def n_traces(self):
+        """How many times the vectorised log-density has been traced (process-wide; for tests)."""
+        return _TRACES[0]
+
     def unpack(self, theta):
         """``(physical model, sigma)`` at the unconstrained vector ``theta`` (gains as in the template when not sampled)."""
-        raw_train, raw_noise = self._unravel(jnp.asarray(theta))
-        return constrain(eqx.combine(raw_train, self._static)), constrain(raw_noise).sigma
+        return self._d.unpack(jnp.asarray(theta))
+
+    def log_prob(self, theta):
+        """Log-posterior (up to a constant) at one unconstrained vector; -inf where undefined."""
+        return self._d.log_prob(theta)
+
+    def _loglik(self, model, sigma):
+        return self._d._loglik(model, sigma)
+
+    def __call__(self, thetas):
+        """Vectorised log-posterior ``(n_walkers, ndim) -> (n_walkers,)`` for emcee (``vectorize=True``)."""
+        thetas = np.asarray(thetas, dtype=np.float64)
+        if thetas.ndim != 2 or thetas.shape[1] != self.ndim:
+            raise ValueError(f"expected thetas of shape (n, {self.ndim}), got {thetas.shape}")
+        return np.asarray(_batch_log_prob(self._d, jnp.asarray(thetas)))
+
+    def physical(self, thetas):
+        """Physical (constrained) values ``(n, ndim)`` in the order of `names`."""
+        return np.asarray(_batch_physical(self._d, jnp.asarray(thetas, dtype=jnp.float64)))
+
+    def initial_ball(self, n_walkers, rng, scale=1e-3):
+        """Walkers in a small ball around the starting point (the fit), all with finite density."""
+        theta0 = np.asarray(self.theta0, dtype=np.float64)
+        width = scale * np.maximum(np.abs(theta0), 1.0)
+        pos = theta0 + width * rng.standard_normal((n_walkers, self.ndim))
+        lp = self(pos)
+        for _ in range(50):
+            bad = ~np.isfinite(lp)
+            if not bad.any():
+                return pos
+            pos[bad] = theta0 + 0.1 * width * rng.standard_normal((int(bad.sum()), self.ndim))
+            lp = self(pos)
+        raise UserInputError("the log-posterior is not finite around the starting model; check the fit and the priors")
+
+    def predict(self, thetas, u, dt, rng):
+        """Posterior-predictive draws on input ``u``: ``(mean function (S, T), with noise (S, T))``.
+
+        With marginalised gains each draw takes gains from their exact conditional
+        Gaussian given the sampled nonlinear parameters; with profiled gains, their estimate.
+        """
+        thetas = jnp.asarray(thetas, dtype=jnp.float64)
+        keys = jax.random.split(jax.random.PRNGKey(int(rng.integers(2**31))), thetas.shape[0])
+        f, yrep = _batch_predict(self._d, thetas, keys, jnp.asarray(u, dtype=jnp.float64), jnp.asarray(dt, dtype=jnp.float64))
+        return np.asarray(f), np.asarray(yrep)
+
+
+class _Density(eqx.Module):
+    """The log-density as a PyTree (data and fixed parameters are leaves, settings static),
+    so the jitted functions below compile once per model structure and data shape, not per instance."""
+
+    static: object
+    args: tuple
+    gain_scale: jnp.ndarray
+    treedef: object = eqx.field(static=True)
+    shapes: tuple = eqx.field(static=True)
+    priors: tuple = eqx.field(static=True)
+    noise: str = eqx.field(static=True)
+    nu: float = eqx.field(static=True)
+    linear: str = eqx.field(static=True)
+    prior_only: bool = eqx.field(static=True)
+
+    def unravel(self, theta):
+        parts, i = [], 0
+        for shape in self.shapes:
+            size = int(np.prod(shape, dtype=int))
+            parts.append(theta[i : i + size].reshape(shape))
+            i += size
+        return jax.tree_util.tree_unflatten(self.treedef, parts)
+
+    def unpack(self, theta):
+        raw_train, raw_noise = self.unravel(theta)
+        return constrain(eqx.combine(raw_train, self.static)), constrain(raw_noise).sigma
+
+    def physical(self, theta):
+        raw_train, raw_noise = self.unravel(theta)
+        return ravel_pytree((constrain(raw_train), constrain(raw_noise)))[0]
 
     def _loglik_resid(self, r, sigma):
         n = r.shape[0]
@@ -331,8 +417,8 @@ class Posterior:
 
     def _design(self, model):
         eupi = _eupi_of(model)
-        A = jnp.concatenate([eupi.features(_hysteresis_input(model, u, d)) for u, _, d in self._args])
-        y = jnp.concatenate([y for _, y, _ in self._args])
+        A = jnp.concatenate([eupi.features(_hysteresis_input(model, u, d)) for u, _, d in self.args])
+        y = jnp.concatenate([y for _, y, _ in self.args])
         # column scaling (exact: prior sd scaled alike) keeps the normal equations well conditioned
         c = jnp.maximum(jnp.sqrt(jnp.mean(A * A, axis=0)), 1e-12)
         return A / c[None, :], y, c
@@ -346,22 +432,19 @@ class Posterior:
         return A, y, c, tau, M, b
 
     def log_prob(self, theta):
-        """Log-posterior (up to a constant) at one unconstrained vector; -inf where undefined."""
-        self.n_traces += 1  # counts traces, not calls
-        raw_train, raw_noise = self._unravel(theta)
-        model = constrain(eqx.combine(raw_train, self._static))
-        noise = constrain(raw_noise)
-        phys_leaves = jax.tree_util.tree_leaves((eqx.filter(model, self.spec), noise))
+        raw_train, raw_noise = self.unravel(theta)
+        model = constrain(eqx.combine(raw_train, self.static))
+        phys_leaves = jax.tree_util.tree_leaves((constrain(raw_train), constrain(raw_noise)))
         lp = log_jacobian(raw_train) + log_jacobian(raw_noise)
-        for leaf, prior in zip(phys_leaves, self._prior_list):
+        for leaf, prior in zip(phys_leaves, self.priors):
             lp = lp + prior.logpdf(leaf)
         if not self.prior_only:
-            lp = lp + self._loglik(model, noise.sigma)
+            lp = lp + self._loglik(model, constrain(raw_noise).sigma)
         return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
     def _loglik(self, model, sigma):
         if self.linear == "sample":
-            r = jnp.concatenate([model.simulate(u, d) - y for u, y, d in self._args])
+            r = jnp.concatenate([model.simulate(u, d) - y for u, y, d in self.args])
             return self._loglik_resid(r, sigma)
         A, y, c, tau, M, b = self._gain_system(model, sigma)
         if self.linear == "profile":
@@ -375,69 +458,41 @@ class Posterior:
         logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log(tau**2)) + logdet_M
         return -0.5 * (quad + logdet_cov + n * _LOG2PI)
 
-    def __call__(self, thetas):
-        """Vectorised log-posterior ``(n_walkers, ndim) -> (n_walkers,)`` for emcee (``vectorize=True``)."""
-        thetas = np.asarray(thetas, dtype=np.float64)
-        if thetas.ndim != 2 or thetas.shape[1] != self.ndim:
-            raise ValueError(f"expected thetas of shape (n, {self.ndim}), got {thetas.shape}")
-        return np.asarray(self._batch(jnp.asarray(thetas)))
-
-    # -- derived -----------------------------------------------------------
-    def physical(self, thetas):
-        """Physical (constrained) values ``(n, ndim)`` in the order of `names`."""
-
-        def one(theta):
-            raw_train, raw_noise = self._unravel(theta)
-            phys = (constrain(raw_train), constrain(raw_noise))
-            return ravel_pytree(phys)[0]
-
-        return np.asarray(jax.jit(jax.vmap(one))(jnp.asarray(thetas)))
-
-    def initial_ball(self, n_walkers, rng, scale=1e-3):
-        """Walkers in a small ball around the starting point (the fit), all with finite density."""
-        theta0 = np.asarray(self.theta0)
-        width = scale * np.maximum(np.abs(theta0), 1.0)
-        pos = theta0 + width * rng.standard_normal((n_walkers, self.ndim))
-        lp = self(pos)
-        for _ in range(50):
-            bad = ~np.isfinite(lp)
-            if not bad.any():
-                return pos
-            pos[bad] = theta0 + 0.1 * width * rng.standard_normal((int(bad.sum()), self.ndim))
-            lp = self(pos)
-        raise UserInputError("the log-posterior is not finite around the starting model; check the fit and the priors")
-
-    def predict(self, thetas, u, dt, rng):
-        """Posterior-predictive draws on input ``u``: ``(mean function (S, T), with noise (S, T))``."""
-        thetas = jnp.asarray(thetas)
-        u = jnp.asarray(u, dtype=jnp.float64)
-        dt = jnp.asarray(dt, dtype=jnp.float64)
-        key = jax.random.PRNGKey(int(rng.integers(2**31)))
-        keys = jax.random.split(key, thetas.shape[0])
-        nu = self.nu
-
-        def one(theta, k):
-            model, sigma = self.unpack(theta)
-            k1, k2 = jax.random.split(k)
-            if self.linear != "sample":
-                A, y, c, tau, M, b = self._gain_system(model, sigma)
-                if self.linear == "profile":
-                    mean = _ridge_lstsq(A, y, sigma / tau)
-                else:
-                    L = jnp.linalg.cholesky(M)
-                    mean = jax.scipy.linalg.cho_solve((L, True), b)
-                    z = jax.random.normal(k1, mean.shape)
-                    mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
-                model = _replace_eupi(model, _eupi_of(model).with_linear_weights(mean / c))
-            f = model.simulate(u, dt)
-            if self.noise == "gaussian":
-                e = jax.random.normal(k2, f.shape)
+    def predict(self, theta, key, u, dt):
+        model, sigma = self.unpack(theta)
+        k1, k2 = jax.random.split(key)
+        if self.linear != "sample":
+            A, y, c, tau, M, b = self._gain_system(model, sigma)
+            if self.linear == "profile":
+                mean = _ridge_lstsq(A, y, sigma / tau)
             else:
-                e = jax.random.t(k2, nu, f.shape)
-            return f, f + sigma * e
+                L = jnp.linalg.cholesky(M)
+                mean = jax.scipy.linalg.cho_solve((L, True), b)
+                z = jax.random.normal(k1, mean.shape)
+                mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
+            model = _replace_eupi(model, _eupi_of(model).with_linear_weights(mean / c))
+        f = model.simulate(u, dt)
+        e = jax.random.normal(k2, f.shape) if self.noise == "gaussian" else jax.random.t(k2, self.nu, f.shape)
+        return f, f + sigma * e
 
-        f, yrep = jax.jit(jax.vmap(one))(thetas, keys)
-        return np.asarray(f), np.asarray(yrep)
+
+_TRACES = [0]
+
+
+@jax.jit
+def _batch_log_prob(density, thetas):
+    _TRACES[0] += 1  # runs at trace time only
+    return jax.vmap(density.log_prob)(thetas)
+
+
+@jax.jit
+def _batch_physical(density, thetas):
+    return jax.vmap(density.physical)(thetas)
+
+
+@jax.jit
+def _batch_predict(density, thetas, keys, u, dt):
+    return jax.vmap(lambda t, k: density.predict(t, k, u, dt))(thetas, keys)
 
 
 # -- running ------------------------------------------------------------------

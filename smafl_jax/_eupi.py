@@ -41,7 +41,7 @@ import numpy as np
 from . import _config  # noqa: F401
 from ._constraints import positive
 from ._io import register_model
-from ._operators import consistent_initial_state, play
+from ._operators import consistent_initial_state, play, play_weighted
 
 __all__ = ["EUPI", "threshold_grid", "tilt_grid"]
 
@@ -152,17 +152,20 @@ class EUPI(eqx.Module):
     def normalise(self, u):
         return (jnp.asarray(u, dtype=jnp.float64) - self.u_ref) / self.u_span
 
+    def _initial_state(self, s0, r, a):
+        if self.init == "descended":
+            y0 = a * (s0 + r)  # upper bound at the first input: state left by a descent to u(0)
+        elif self.init == "consistent":
+            y0 = consistent_initial_state(s0, r, a)
+        else:
+            y0 = None
+        return y0
+
     def operators(self, u):
         """Operator outputs ``(T, n_sym + n_alpha * n_asym)`` on the normalised input."""
         s = self.normalise(u)
         r, a = self._bank()
-        if self.init == "descended":
-            y0 = a * (s[0] + r)  # upper bound at the first input: state left by a descent to u(0)
-        elif self.init == "consistent":
-            y0 = consistent_initial_state(s[0], r, a)
-        else:
-            y0 = None
-        return play(s, r, a, y0=y0, method=self.method)
+        return play(s, r, a, y0=self._initial_state(s[0], r, a), method=self.method)
 
     def features(self, u):
         """Design matrix ``(T, p)``: columns ``[s, F_sym, F_asym (tilt-major), s^2.., 1]``."""
@@ -205,4 +208,11 @@ class EUPI(eqx.Module):
     def simulate(self, u, dt=None):
         """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
         del dt
-        return self.features(u) @ self.linear_weights()
+        if self.method == "assoc":
+            return self.features(u) @ self.linear_weights()
+        # Weighted sum inside the scan: writes T numbers instead of T x n (see benchmarks/README.md).
+        s = self.normalise(u)
+        r, a = self._bank()
+        ops = play_weighted(s, r, a, jnp.concatenate([self.v, jnp.ravel(self.w)]), y0=self._initial_state(s[0], r, a))
+        poly = sum((c * s ** (m + 2) for m, c in enumerate(self.poly)), jnp.zeros_like(s))
+        return self.gain * s + ops + poly + self.offset

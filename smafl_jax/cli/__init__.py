@@ -14,7 +14,7 @@ import sys
 from .._errors import UserInputError
 
 # Command modules, in the order `smafl --help` lists them.
-COMMANDS = ["simulate", "sample", "control", "sweep", "diagnose"]
+COMMANDS = ["simulate", "fit", "sample", "control", "sweep", "diagnose", "paper"]
 
 
 def build_parser():

@@ -1,0 +1,257 @@
+"""Fitting one record end to end: model choice, split, fit, metrics, fit.json, report, figures.
+
+Shared by ``smafl fit`` and ``experiments/fit_folder.py``.  Metrics are
+computed on one simulation of the whole record (memory stays continuous) and
+scored on the train and validation masks separately; e_r (eq. 3) divides by
+the measured output range *of that subset*.
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ._cascade import Cascade
+from ._errors import UserInputError
+from ._eupi import EUPI
+from ._fit import SOLVERS, default_trainable, fit
+from ._io import atomic_savefig, atomic_write_json, atomic_write_text, model_to_dict
+from ._joule_lag import JouleLag
+from ._metrics import metrics
+from ._simulate import simulate
+from ._split import split_masks
+from ._thermal import JouleThermal
+
+__all__ = ["MODELS", "build_model", "fit_record", "write_fit_outputs", "versions"]
+
+MODELS = ("eupi", "cascade", "joule")
+
+K2_NOTE = (
+    "k2 is not identified by a cascade fit: the hysteresis sees sqrt(theta k1/k2) and theta is "
+    "proportional to k2, so the displacement does not depend on k2; it is held at its start value. "
+    "Fit --model joule (the paper's eq. 7 lag) for a K2, which is a different quantity."
+)
+
+
+def versions():
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for pkg in ("smafl-jax", "jax", "jaxlib", "equinox", "optimistix", "jaxopt", "numpy", "scipy"):
+        try:
+            out[pkg.replace("-", "_")] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg.replace("-", "_")] = None
+    return out
+
+
+def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_ref="auto"):
+    """Untrained model of ``kind`` for the record's input range.
+
+    ``u_ref="auto"``: 0 for voltage inputs (column name containing "volt",
+    the paper's origin), else the input minimum (temperature, pressure...).
+    """
+    u = record.u
+    u_min, u_max = float(np.min(u)), float(np.max(u))
+    if not u_max > u_min:
+        raise UserInputError(f"input column '{record.input_name}' is constant ({u_min:g}); nothing to identify")
+    grid = dict(n_sym=n_sym, n_alpha=n_alpha, n_asym=n_asym, poly_order=poly_order)
+    if kind == "eupi":
+        if u_ref == "auto":
+            ref = None if "volt" in record.input_name.lower() else u_min
+        else:
+            ref = {"zero": None, "min": u_min}[u_ref]
+        return EUPI.from_range(u_min, u_max, u_ref=ref, **grid)
+    if kind in ("cascade", "joule") and u_min < 0:
+        raise UserInputError(
+            f"--model {kind} needs a drive voltage >= 0 as input (Joule heating goes with U^2); "
+            f"'{record.input_name}' goes down to {u_min:g}"
+        )
+    if kind == "cascade":
+        return Cascade.from_range(u_max, **grid)
+    if kind == "joule":
+        return JouleLag(thermal=JouleThermal(), offset=np.asarray(float(record.y[0])))
+    raise UserInputError(f"unknown model {kind!r}; choose one of {MODELS}")
+
+
+def fit_record(record, *, model="eupi", split="auto", val_fraction=0.3, solver="lm", max_steps=300, thresholds=False, tilts=False, grid=None, progress=False):
+    """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content."""
+    if record.y is None:
+        raise UserInputError(f"{record.path}: no output column to fit")
+    if solver not in SOLVERS:
+        raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    start = build_model(model, record, **(grid or {}))
+    train, val, split_info = split_masks(record, split, val_fraction=val_fraction)
+    spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
+    t0 = time.perf_counter()
+    res = fit(start, record, solver=solver, trainable=spec, weights=[train.astype(float)], max_steps=max_steps, progress=progress)
+    seconds = time.perf_counter() - t0
+    yhat = np.asarray(simulate(res.model, record.u, record.dt))
+    if not np.all(np.isfinite(yhat)):
+        raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
+    mets = {"train": metrics(record.y[train], yhat[train]), "validation": metrics(record.y[val], yhat[val]) if val.any() else None}
+    notes = []
+    if model == "cascade":
+        notes.append(K2_NOTE)
+        prof = (res.info or {}).get("profile") or {}
+        if prof.get("at_grid_edge"):
+            notes.append(
+                f"the best k1 ({prof.get('k1'):.4g} 1/s) lies at the edge of the candidate grid: the record does not "
+                "pin down the thermal time constant (e.g. quasi-static data)"
+            )
+    if not res.converged:
+        notes.append(f"solver: {res.message}")
+    doc = {
+        "format": "smafl-model",
+        "version": 1,
+        "model": model_to_dict(res.model),
+        "metrics": mets,
+        "data": {
+            "file": Path(record.path).name if record.path else None,
+            "path": str(record.path) if record.path else None,
+            "sha256": record.sha256,
+            "input_column": record.input_name,
+            "output_column": record.output_name,
+            "sample_time_s": float(record.dt),
+            "n_samples": len(record),
+            "units": dict(record.units),
+        },
+        "split": split_info,
+        "settings": {
+            "model": model,
+            "split": split_info["kind"],
+            "val_fraction": val_fraction,
+            "solver": solver,
+            "max_steps": max_steps,
+            "train_thresholds": thresholds,
+            "train_tilts": tilts,
+            "grid": grid or {},
+            "init": (res.info or {}).get("init"),
+        },
+        "solver": {
+            "name": res.solver,
+            "loss": res.loss,
+            "init_loss": res.init_loss,
+            "n_steps": res.n_steps,
+            "converged": res.converged,
+            "message": res.message,
+            "seconds": seconds,
+            "profile_k1": ((res.info or {}).get("profile") or {}).get("k1"),
+        },
+        "notes": notes,
+        "versions": versions(),
+    }
+    return res.model, doc, (train, val, yhat)
+
+
+# -- report ---------------------------------------------------------------------------
+
+
+def _figures(out, record, yhat, train, val):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t, u, y = record.time, record.u, record.y
+    yname = record.output_name or "output"
+    uname = record.input_name
+    files = {}
+
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    ax.plot(t, y, lw=1.0, color="0.2", label="measured")
+    ax.plot(t, yhat, lw=1.0, color="C1", label="model")
+    if val.any():
+        ax.fill_between(t, np.min(y), np.max(y), where=val, color="C0", alpha=0.12, step="mid", label="validation")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(yname)
+    ax.legend(loc="best", fontsize=8)
+    files["time"] = "fit_time.png"
+    atomic_savefig(fig, out / files["time"])
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(5.5, 4.5))
+    ax.plot(u[train], y[train], ".", ms=2, color="0.3", label="measured (train)")
+    if val.any():
+        ax.plot(u[val], y[val], ".", ms=2, color="C0", label="measured (validation)")
+    ax.plot(u, yhat, lw=0.9, color="C1", label="model")
+    ax.set_xlabel(uname)
+    ax.set_ylabel(yname)
+    ax.legend(loc="best", fontsize=8)
+    files["loops"] = "fit_loops.png"
+    atomic_savefig(fig, out / files["loops"])
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(9, 3.0))
+    err = y - yhat
+    ax.plot(t[train], err[train], ".", ms=2, color="0.3", label="train")
+    if val.any():
+        ax.plot(t[val], err[val], ".", ms=2, color="C0", label="validation")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"residual {yname}")
+    ax.legend(loc="best", fontsize=8)
+    files["residuals"] = "fit_residuals.png"
+    atomic_savefig(fig, out / files["residuals"])
+    plt.close(fig)
+    return files
+
+
+def _fmt(x):
+    return "n/a" if x is None else f"{x:.4g}"
+
+
+def _report_md(doc, files):
+    d, s, sv = doc["data"], doc["settings"], doc["solver"]
+    m = doc["model"]
+    lines = [
+        f"# Fit of `{d['file']}` ({s['model']})",
+        "",
+        f"- data: `{d['path']}` (sha256 `{d['sha256']}`), input `{d['input_column']}`, output `{d['output_column']}`, "
+        f"dt {d['sample_time_s']:g} s, {d['n_samples']} samples",
+        f"- split: {doc['split']['rule']}",
+        f"- solver: {sv['name']} ({sv['n_steps']} steps, {sv['seconds']:.1f} s): {sv['message']}",
+        "",
+        "| metric | train | validation |",
+        "| --- | --- | --- |",
+    ]
+    tr, va = doc["metrics"]["train"], doc["metrics"]["validation"] or {}
+    for key, label in [("rmse", "RMSE"), ("e_r_percent", "e_r (eq. 3, %)"), ("max_abs_error", "max abs error"), ("mean_abs_error", "mean abs error"), ("n_samples", "samples")]:
+        lines.append(f"| {label} | {_fmt(tr.get(key))} | {_fmt(va.get(key))} |")
+    lines += ["", "## Parameters", ""]
+    if m["type"] in ("Cascade", "JouleLag"):
+        th = m["thermal"]
+        lines.append(f"- thermal: k1 = {th['k1']:.6g} 1/s (time constant {1 / th['k1']:.4g} s), k2 = {th['k2']:.6g}")
+    if m["type"] == "JouleLag":
+        lines.append(f"- offset = {m['offset']:.6g}; static gain k2/k1 = {m['thermal']['k2'] / m['thermal']['k1']:.6g} per V^2")
+    h = m.get("hysteresis") if m["type"] == "Cascade" else (m if m["type"] == "EUPI" else None)
+    if h is not None:
+        nz = sum(1 for x in h["v"] if x > 1e-9) + sum(1 for row in h["w"] for x in row if x > 1e-9)
+        lines.append(
+            f"- EUPI: gain {h['gain']:.4g}, {len(h['v'])} symmetric + {sum(len(r) for r in h['w'])} unparallel operators "
+            f"({nz} with non-zero gain), poly {[round(x, 4) for x in h['poly']]}, offset {h['offset']:.4g}, "
+            f"u_ref {h['u_ref']:g}, u_span {h['u_span']:g}, init {h['init']}"
+        )
+    lines.append("- full parameters: `fit.json`")
+    if doc["notes"]:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in doc["notes"]]
+    lines += ["", "## Figures", ""]
+    for key, title in [("time", "Measured vs model over time"), ("loops", "Hysteresis loops (input vs output)"), ("residuals", "Residuals")]:
+        if key in files:
+            lines += [f"### {title}", "", f"![{title}]({files[key]})", ""]
+    return "\n".join(lines) + "\n"
+
+
+def write_fit_outputs(out, record, doc, masks, *, figures=True):
+    """Write ``fit.json``, ``report.md`` and the figures into folder ``out``."""
+    out = Path(out)
+    train, val, yhat = masks
+    files = _figures(out, record, yhat, train, val) if figures else {}
+    doc = dict(doc, figures=files)
+    atomic_write_json(out / "fit.json", doc)
+    atomic_write_text(out / "report.md", _report_md(doc, files))
+    return doc
+

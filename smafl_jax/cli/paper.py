@@ -1,0 +1,21 @@
+"""``smafl paper [--out DIR] [--quick]``: the end-to-end reproduction report on the bundled records."""
+
+from __future__ import annotations
+
+
+def add_parser(sub):
+    p = sub.add_parser("paper", help="reproduce the paper end to end on the bundled data and write one report")
+    p.add_argument("--out", default="out/paper", help="output folder (default: out/paper)")
+    p.add_argument("--quick", action="store_true", help="fewer solver steps and samples (< 3 min on 2 cores)")
+    p.add_argument("--datasets", default=None, help="folder of bundled records (default: the repository's datasets/)")
+    p.add_argument("--real-data", default=None, help="folder of real measured records (default: ../shared/data/real beside the repo)")
+    p.add_argument("--seed", type=int, default=0, help="seed for the sampler and anything random")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args):
+    from .._paper import run_paper
+
+    run_paper(args.out, quick=args.quick, datasets=args.datasets, real=args.real_data, seed=args.seed)
+    return 0

@@ -1,0 +1,193 @@
+"""Issue 6: effect catalogue, residual statistics, blind diagnosis on records with an undeclared effect."""
+
+import importlib.util
+import json
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import smafl_jax as sj
+from smafl_jax._diagnose import diagnose, synthetic_effect_record
+from smafl_jax._effects import (
+    EFFECT_NAMES,
+    AsymmetricCooling,
+    Creep,
+    Delay,
+    ExtendedModel,
+    NonlinearCooling,
+    OutputSaturation,
+    RateDependence,
+    ResistanceTC,
+    fractional_delay,
+)
+from smafl_jax._residuals import autocorrelation, cross_correlation, ljung_box
+
+
+@pytest.fixture(scope="module")
+def truth():
+    from pathlib import Path
+
+    return sj.load_model(Path(__file__).resolve().parents[1] / "datasets" / "truth.json")
+
+
+@pytest.fixture(scope="module")
+def drives():
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "datasets" / "generate.py"
+    spec = importlib.util.spec_from_file_location("smafl_datasets_generate", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.drives()
+
+
+def _u(drives):
+    return np.asarray(drives["minor_loop"][1])[:600]
+
+
+# -- catalogue ------------------------------------------------------------------
+
+
+def test_no_effect_equals_base(truth, drives):
+    u = _u(drives)
+    y0 = np.asarray(sj.simulate(truth, u, 0.5))
+    np.testing.assert_allclose(np.asarray(sj.simulate(ExtendedModel(truth, ()), u, 0.5)), y0, atol=1e-10)
+    eupi = truth.hysteresis
+    np.testing.assert_allclose(np.asarray(sj.simulate(ExtendedModel(eupi, ()), u, 0.5)), np.asarray(sj.simulate(eupi, u)), atol=1e-10)
+
+
+@pytest.mark.parametrize(
+    "effect",
+    [Delay(tau=jnp.asarray(1e-9)), ResistanceTC(beta=jnp.asarray(1e-9)), NonlinearCooling(gamma=jnp.asarray(1e-9)),
+     AsymmetricCooling(log_ratio=jnp.asarray(0.0)), RateDependence(c=jnp.asarray(1e-9)), Creep(g=jnp.asarray(0.0), tau=jnp.asarray(50.0)),
+     OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5))],
+    ids=lambda e: e.name,
+)
+def test_vanishing_effect_is_base(truth, drives, effect):
+    u = _u(drives)
+    y0 = np.asarray(sj.simulate(truth, u, 0.5))
+    y1 = np.asarray(sj.simulate(ExtendedModel(truth, (effect,)), u, 0.5))
+    np.testing.assert_allclose(y1, y0, atol=1e-6)
+
+
+def test_fractional_delay_reference():
+    x = np.sin(np.linspace(0, 6, 50))
+    for d in (0.0, 1.0, 2.3):
+        ref = np.interp(np.arange(50) - d, np.arange(50), x, left=x[0])
+        np.testing.assert_allclose(np.asarray(fractional_delay(jnp.asarray(x), d)), ref, atol=1e-12)
+
+
+def test_extended_thermal_matches_numpy_loop(truth, drives):
+    """Locally linear step with resistance_tc + nonlinear + asymmetric cooling against a numpy loop."""
+    u = _u(drives)
+    dt, beta, gamma, lr = 0.5, 0.4, 0.3, -0.5
+    m = ExtendedModel(truth, (ResistanceTC(beta=jnp.asarray(beta)), AsymmetricCooling(log_ratio=jnp.asarray(lr)), NonlinearCooling(gamma=jnp.asarray(gamma))))
+    k1, qref = float(truth.thermal.k1), float(truth.hysteresis.u_span) ** 2
+    q = u[0] ** 2
+    out = []
+    for x in u:
+        heat = x * x / (1 + beta / qref * max(q, 0))
+        c = 1 + gamma / qref * max(q, 0)
+        target = heat / c
+        rate = k1 * c * (np.exp(lr) if target < q else 1.0)
+        a = np.exp(-rate * dt)
+        q = a * q + (1 - a) * target
+        out.append(q)
+    np.testing.assert_allclose(np.asarray(m.hysteresis_input(u, dt)) ** 2, np.array(out), rtol=1e-10, atol=1e-12)
+
+
+def test_every_effect_roundtrips_json(truth, tmp_path):
+    from smafl_jax._diagnose import _effect_grid
+
+    ctx = {"dt": 0.5, "y_range": 5.0, "y_mid": 3.0, "y_lo": 0.5, "load_ref": 2.0, "load_scale": 0.5}
+    for name in EFFECT_NAMES:
+        e = _effect_grid(name, ctx)[0]
+        m = ExtendedModel(truth, (e,))
+        sj.save_model(tmp_path / f"{name}.json", m)
+        back = sj.load_model(tmp_path / f"{name}.json")
+        assert back.effect_names == [name]
+        u = np.linspace(0, 7, 40)
+        np.testing.assert_allclose(np.asarray(sj.simulate(back, u, 0.5)), np.asarray(sj.simulate(m, u, 0.5)), atol=1e-12)
+
+
+def test_bad_effect_combinations(truth):
+    with pytest.raises(ValueError, match="needs a Cascade"):
+        ExtendedModel(truth.hysteresis, (ResistanceTC(beta=jnp.asarray(0.1)),))
+    with pytest.raises(ValueError, match="once"):
+        ExtendedModel(truth, (Delay(tau=jnp.asarray(1.0)), Delay(tau=jnp.asarray(2.0))))
+
+
+# -- residual statistics ------------------------------------------------------------
+
+
+def test_residual_statistics(rng):
+    white = rng.standard_normal(2000)
+    ar = np.zeros(2000)
+    for k in range(1, 2000):
+        ar[k] = 0.8 * ar[k - 1] + white[k]
+    assert ljung_box(white, 20)["p_value"] > 1e-3
+    assert ljung_box(ar, 20)["p_value"] < 1e-10
+    rho = autocorrelation(ar, 3)
+    e = ar - ar.mean()
+    np.testing.assert_allclose(rho[2], np.sum(e[:-2] * e[2:]) / np.sum(e * e))
+    x = rng.standard_normal(2000)
+    r = np.roll(x, 7)
+    r[:7] = 0
+    assert int(np.argmax(np.abs(cross_correlation(r, x, 20)))) == 7
+
+
+# -- blind diagnosis (quick subset; the full confusion table is the slow test below) ----
+
+
+def test_diagnosis_finds_creep(truth, drives):
+    rec, true = synthetic_effect_record(truth, drives, "creep", seed=7)
+    res, base, ext, split = diagnose(rec, max_candidates=2, verbose=False)
+    assert res["selected"] == ["creep"]
+    assert res["extended"]["heldout_rmse"] < 0.5 * res["base"]["heldout_rmse"]
+    assert res["extended"]["heldout_rmse"] < 2.0 * 0.003  # back to the noise level
+    g = res["extended"]["parameters"]["creep"]["g"]
+    assert abs(g - float(true.effects[0].g)) < 0.2 * float(true.effects[0].g)
+
+
+def test_cli_no_effect_selects_none(truth, drives, tmp_path):
+    from smafl_jax.cli import main
+
+    rec, _ = synthetic_effect_record(truth, drives, None, seed=3)
+    csv = tmp_path / "clean.csv"
+    sj.atomic_write_csv(csv, {"time_s": rec.time, "voltage_V": rec.u, "displacement_mm": rec.y})
+    out = tmp_path / "diag"
+    assert main(["diagnose", str(csv), "--out", str(out), "--max-candidates", "2", "--quiet"]) == 0
+    doc = json.loads((out / "diagnosis.json").read_text())
+    assert doc["selected"] == []
+    assert doc["extended"]["heldout_rmse"] == doc["base"]["heldout_rmse"]
+    assert all(c["evidence"]["p_value"] >= 0 for c in doc["candidates"])
+    for f in ("extended_fit.json", "base_fit.json", "report.md", "residuals_before.png", "residuals_after.png"):
+        assert (out / f).exists()
+    ext = sj.load_model(out / "extended_fit.json")
+    assert type(ext).__name__ == "Cascade"  # nothing selected: the base model itself
+    assert main(["simulate", str(out / "extended_fit.json"), str(csv), "--out", str(tmp_path / "sim.csv")]) == 0
+
+
+def test_cli_bad_inputs(tmp_path, capsys):
+    from smafl_jax.cli import main
+
+    csv = tmp_path / "d.csv"
+    t = np.arange(100) * 0.5
+    sj.atomic_write_csv(csv, {"time_s": t, "voltage_V": np.abs(np.sin(t / 10)) * 5, "displacement_mm": np.abs(np.sin(t / 10))})
+    assert main(["diagnose", str(csv), "--out", str(tmp_path / "o"), "--effects", "gravity", "--quiet"]) == 2
+    assert "unknown effect" in capsys.readouterr().err
+    assert main(["diagnose", str(csv), "--out", str(tmp_path / "o"), "--max-candidates", "0"]) == 2
+    assert main(["diagnose", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o")]) == 2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("effect", [None, *EFFECT_NAMES])
+def test_confusion_row(truth, drives, effect):
+    rec, _ = synthetic_effect_record(truth, drives, effect, seed=11)
+    res, *_ = diagnose(rec, verbose=False)
+    if effect is None:
+        assert res["selected"] == []
+    else:
+        assert res["selected"][:1] == [effect]
+        assert res["extended"]["heldout_rmse"] < 0.95 * res["base"]["heldout_rmse"]
