@@ -13,7 +13,7 @@ For each replicate the nominal 90 % (and 95 %) equal-tailed intervals of the
 thermal parameters are checked against the truth; the coverage over the
 replicates should be near nominal (target: 80-98 % for 90 %).
 
-    python experiments/calibration.py --study both --reps 100 --cascade-reps 40 --out experiments/out
+    python experiments/calibration.py --study both --reps 60 --cascade-reps 30 --out experiments/out
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def _coverage(reps, names):
             {n: float(np.mean([r[n]["hit95"] for r in reps])) for n in names})
 
 
-def run_joule(n_rep=100, n_steps=2500, seed=0, progress=True, n_walkers=16):
+def run_joule(n_rep=100, n_steps=1500, seed=0, progress=True, n_walkers=16):
     """Coverage of k1 and k2 for the JouleThermal model alone."""
     names, truth = ["k1", "k2"], {"k1": K1, "k2": K2}
     reps, short = [], 0
@@ -88,7 +88,7 @@ def cascade_record(rng, n=400, dt=0.5, sigma=0.01):
     return u, np.asarray(cascade_truth().simulate(u, dt)) + sigma * rng.standard_normal(n), dt
 
 
-def run_cascade(n_rep=40, n_steps=600, seed=0, progress=True, n_walkers=12):
+def run_cascade(n_rep=30, n_steps=600, seed=0, progress=True, n_walkers=12):
     """Coverage of the cascade's k1 with the EUPI gains marginalised."""
     names, truth = ["thermal.k1"], {"thermal.k1": K1}
     reps, short = [], 0
@@ -147,8 +147,9 @@ def figure(results, path):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--study", choices=["joule", "cascade", "both"], default="both")
-    ap.add_argument("--reps", type=int, default=100, help="replicates of the joule study (default 100)")
-    ap.add_argument("--cascade-reps", type=int, default=40, help="replicates of the cascade study (default 40)")
+    ap.add_argument("--reps", type=int, default=60, help="replicates of the joule study (default 60)")
+    ap.add_argument("--cascade-reps", type=int, default=30, help="replicates of the cascade study (default 30)")
+    ap.add_argument("--steps", type=int, default=1500, help="chain length of the joule study (cascade: 600)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default=str(Path(__file__).parent / "out"))
     args = ap.parse_args(argv)
@@ -158,7 +159,7 @@ def main(argv=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sj.ChainTooShortWarning)
         if args.study in ("joule", "both"):
-            results.append(run_joule(args.reps, seed=args.seed))
+            results.append(run_joule(args.reps, n_steps=args.steps, seed=args.seed))
         if args.study in ("cascade", "both"):
             results.append(run_cascade(args.cascade_reps, seed=args.seed))
     elapsed = time.time() - t0

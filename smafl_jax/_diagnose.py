@@ -51,6 +51,7 @@ from ._effects import (
     Creep,
     Delay,
     ExtendedModel,
+    InputWarp,
     LoadDependence,
     NonlinearCooling,
     OutputSaturation,
@@ -146,18 +147,24 @@ def _segment(rec, idx, mask=None, load_col=None):
     )
 
 
-def make_split(record, holdout_fraction=HOLDOUT_FRACTION):
-    """Documented split: interleaved branches (label % 3 == 2) or the last 30 % as a time block."""
+def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
+    """Documented split: interleaved branches (label % 3 == ``holdout_residue``, default 2) or the last 30 % as a time block.
+
+    Other residues (0, 1) give the cross-validation folds of a branch record;
+    branch 0 (the major loop) is always trained on.
+    """
     lc = load_column(record)
     if "branch" in record.extra:
+        if holdout_residue not in (0, 1, 2):
+            raise UserInputError(f"holdout_residue must be 0, 1 or 2, got {holdout_residue!r}")
         b = np.asarray(record.extra["branch"]).astype(int)
         labels = list(dict.fromkeys(b.tolist()))
-        held = [k for k in labels if k != 0 and k % 3 == 2]
+        held = [k for k in labels if k != 0 and k % 3 == holdout_residue]
         if not held or len(held) == len(labels):
-            raise UserInputError("branch split needs at least one branch labelled 2 mod 3 and one other branch")
+            raise UserInputError(f"branch split needs at least one branch labelled {holdout_residue} mod 3 (not 0) and one other branch")
         train = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k not in held]
         test = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k in held]
-        return Split("branch", "branches with label % 3 == 2 held out (interleaved); branch 0 (major loop) trained", train, test,
+        return Split("branch", f"branches with label % 3 == {holdout_residue} held out (interleaved); branch 0 (major loop) trained", train, test,
                      [k for k in labels if k not in held], held)
     n = len(record)
     cut = int(round(n * (1.0 - holdout_fraction)))
@@ -300,6 +307,7 @@ _NONLINEAR = {
     "resistance_tc": [("beta", "log", 0.5)],
     "asymmetric_cooling": [("log_ratio", "lin", 0.2)],
     "nonlinear_cooling": [("gamma", "log", 0.5)],
+    "input_warp": [("c", "lin", 0.1), ("b", "log", 0.5)],
     "rate_dependence": [("c", "log", 0.5)],
     "creep": [("g", "lin", 0.05), ("tau", "log", 0.5)],
     "output_saturation": [("m", "lin", "y"), ("w", "log", 0.2)],
@@ -350,6 +358,8 @@ def _effect_grid(name, ctx):
         return [AsymmetricCooling(log_ratio=a(r)) for r in (-0.7, -0.25, 0.25, 0.7)]
     if name == "nonlinear_cooling":
         return [NonlinearCooling(gamma=a(g)) for g in (0.1, 0.4, 1.2)]
+    if name == "input_warp":
+        return [InputWarp(c=a(c), b=a(b)) for c in (0.3, 0.5, 0.7) for b in (0.05, 0.15, 0.5)]
     if name == "rate_dependence":
         return [RateDependence(c=a(c)) for c in (0.1, 0.5, 2.0)]
     if name == "creep":
@@ -375,6 +385,8 @@ def _probe(name, ctx):
         return [AsymmetricCooling(log_ratio=a(0.05))]
     if name == "nonlinear_cooling":
         return [NonlinearCooling(gamma=a(0.05))]
+    if name == "input_warp":
+        return [InputWarp(c=a(c), b=a(3.0)) for c in (0.25, 0.5, 0.75)]
     if name == "rate_dependence":
         return [RateDependence(c=a(0.05))]
     if name == "creep":
@@ -542,14 +554,14 @@ def _metrics_pair(model, split):
     return tr, te
 
 
-def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effects=2, p_threshold=0.01, verbose=True):
+def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effects=2, p_threshold=0.01, holdout_residue=2, verbose=True):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``."""
     if record.y is None:
         raise UserInputError("diagnose needs an output column")
     t_start = time.time()
     base0, base_rule = choose_base(record)
     rate_free = is_rate_free(record)
-    split = make_split(record)
+    split = make_split(record, holdout_residue=holdout_residue)
     names = applicable_effects(base0, split, rate_free) if effects is None else list(effects)
     unknown = [n for n in names if n not in EFFECTS]
     if unknown:

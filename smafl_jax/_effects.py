@@ -6,8 +6,9 @@ effect is an `equinox.Module` registered for JSON, so an extended model saves,
 loads and runs with ``smafl simulate`` like any other model.  The pipeline is
 
     u --delay--> x --thermal (+ resistance_tc, asymmetric_cooling,
-    nonlinear_cooling, ambient_drift)--> u_eff --EUPI (+ rate_dependence)--> H
-      --creep--> --output_saturation--> --load_dependence--> y
+    nonlinear_cooling, ambient_drift)--> u_eff --input_warp--> --EUPI
+      (+ rate_dependence)--> H --creep--> --output_saturation-->
+      --load_dependence--> y
 
 Thermal effects are written on the thermal state in *voltage-squared units*
 ``q = theta k1 / k2`` (the steady-state value of ``q`` is the applied ``U^2``),
@@ -64,8 +65,10 @@ __all__ = [
     "RateDependence",
     "Creep",
     "OutputSaturation",
+    "InputWarp",
     "LoadDependence",
     "effect_names",
+    "warp_input",
     "fractional_delay",
 ]
 
@@ -175,6 +178,30 @@ class OutputSaturation(Effect):
 
 
 @register_model
+class InputWarp(Effect):
+    """Transformation warp: the hysteresis acts on a sigmoidal (CDF-like) function of the input."""
+
+    name: ClassVar[str] = "input_warp"
+    needs: ClassVar[tuple] = ()
+    physics: ClassVar[str] = (
+        "The martensite/austenite transformation of an SMA runs over a narrow temperature band, and the quasi-static "
+        "wire temperature follows the voltage: the phase fraction is a steep sigmoid of the drive. The play operators "
+        "act on the warped input s' = (S((s - c)/b) - S(-c/b)) / (S((1 - c)/b) - S(-c/b)), S the logistic CDF and s "
+        "the normalised input, which keeps the input range and puts the threshold grid where the transformation "
+        "happens; it tends to the identity as b grows.")
+    parameters: ClassVar[dict] = {"c": "centre of the transformation band (normalised input, fraction of u_span above u_ref)",
+                                  "b": "width of the band (normalised input) (> 0)"}
+    c: jnp.ndarray
+    b: jnp.ndarray = positive()
+
+
+def warp_input(s, c, b):
+    """Monotone logistic warp of the normalised input that maps 0 -> 0 and 1 -> 1 (see `InputWarp`)."""
+    lo, hi = jax.nn.sigmoid(-c / b), jax.nn.sigmoid((1.0 - c) / b)
+    return (jax.nn.sigmoid((s - c) / b) - lo) / (hi - lo)
+
+
+@register_model
 class LoadDependence(Effect):
     """Stroke and offset change with the mechanical load (needs a load column)."""
 
@@ -190,7 +217,8 @@ class LoadDependence(Effect):
 
 EFFECTS = {
     cls.name: cls
-    for cls in (Delay, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, RateDependence, Creep, OutputSaturation, LoadDependence)
+    for cls in (Delay, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, InputWarp, RateDependence, Creep, OutputSaturation,
+                LoadDependence)
 }
 EFFECT_NAMES = tuple(EFFECTS)
 
@@ -349,6 +377,9 @@ class ExtendedModel(eqx.Module):
         eupi = self.hysteresis
         x = self.hysteresis_input(u, dt)
         s = eupi.normalise(x)
+        iw = self.get("input_warp")
+        if iw is not None:
+            s = warp_input(s, iw.c, iw.b)
         rd = self.get("rate_dependence")
         if rd is None:
             ops = _eupi_operators(eupi, s)

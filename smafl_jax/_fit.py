@@ -445,21 +445,26 @@ def _solve_jaxopt(name, params, static, bounds, args, max_steps, tol):
     return sol.params, n < max_steps, n, loss(sol.params)
 
 
-def _lift_zero_gains(model, spec):
+def _lift_zero_gains(model, spec, profiled):
     """Give exact-zero play gains a small positive value so a refinement can move them.
 
     BVLS returns exact zeros; in softplus coordinates those sit at
     ``softplus^-1(1e-10)`` where the gradient is ~1e-10, i.e. pinned.  That is
-    right when only ``k1`` and the gains are trained (the zeros are part of the
-    joint optimum, by the KKT conditions of the profiled problem), but pins them
-    for good when thresholds or tilts move; then they start at 1e-4 of the
-    largest gain instead.
+    right after the k1 profile when only ``k1`` and the gains are trained (the
+    zeros are then part of the joint optimum, by the KKT conditions of the
+    profiled problem), but pins them for good when the start is not that
+    optimum (a BVLS at some other k1, or thresholds / tilts that move): an
+    operator switched off at the start k1 could never switch back on (seen:
+    LM from the paper's k1 stalled at 27x the loss scipy reached).  Then they
+    start at 1e-4 of the largest gain instead.
     """
     eupi = _eupi_of(model)
     if eupi is None:
         return model
     s = _eupi_of(spec)
-    if not any(bool(getattr(s, f)) for f in ("r_sym", "r_asym", "alpha")):
+    grids = any(bool(getattr(s, f)) for f in ("r_sym", "r_asym", "alpha"))
+    k1 = _has_k1(model) and bool(spec.thermal.k1)
+    if not (grids or (k1 and not profiled)):
         return model
     floor = 1e-4 * float(jnp.max(jnp.abs(eupi.linear_weights()[: int(np.sum(eupi.nonnegative_columns()))])))
     lifted = eqx.tree_at(
@@ -555,7 +560,7 @@ def fit(
     if solver is None or max_steps == 0:
         info["total_seconds"] = time.perf_counter() - t0
         return FitResult(model, init_loss, 0, True, f"initialiser only ({init})", "none", init_loss, info)
-    start = _lift_zero_gains(model, spec)
+    start = _lift_zero_gains(model, spec, profiled=init == "profile")
     say(f"joint refinement: {solver}, up to {max_steps} steps")
     t1 = time.perf_counter()
     fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
