@@ -510,12 +510,33 @@ class SampleRun:
     resumed_from: int
 
 
-def _backend_ok(path, name):
-    """Iteration count of a readable emcee HDF5 chain, or None if unreadable."""
+def _hdf_backend(path, name, read_only=False):
+    """emcee's HDF5 backend, made tolerant of a reader holding the file for a moment.
+
+    HDF5 locks the file while it is open; emcee opens it for every step, so a
+    concurrent reader (a user inspecting the chain) would make the sampler crash
+    with ``BlockingIOError``.  Opening is retried for up to 30 s instead.
+    """
     import emcee
 
+    class _Backend(emcee.backends.HDFBackend):
+        def open(self, mode="r"):
+            deadline = time.monotonic() + 30.0
+            while True:
+                try:
+                    return super().open(mode)
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.05)
+
+    return _Backend(str(path), name=name, read_only=read_only)
+
+
+def _backend_ok(path, name):
+    """Iteration count of a readable emcee HDF5 chain, or None if unreadable."""
     try:
-        be = emcee.backends.HDFBackend(str(path), name=name, read_only=True)
+        be = _hdf_backend(path, name, read_only=True)
         it = int(be.iteration)
         if it > 0:
             be.get_last_sample()
@@ -575,7 +596,7 @@ def run_sampler(posterior, n_steps, *, n_walkers=None, path=None, name="mcmc", s
             done = it
         elif path.exists():
             path.unlink()
-        backend = emcee.backends.HDFBackend(str(path), name=name)
+        backend = _hdf_backend(path, name)
         if done and backend.shape != (n_walkers, ndim):
             raise UserInputError(f"{path}: holds a chain of shape {backend.shape} (walkers, parameters); this run has {(n_walkers, ndim)}; restart instead of resuming")
         if done > n_steps:
@@ -620,9 +641,7 @@ def _collect(backend, names, path, resumed_from):
 
 def load_run(path, names, name="mcmc"):
     """`SampleRun` from an emcee HDF5 file written by `run_sampler`."""
-    import emcee
-
-    return _collect(emcee.backends.HDFBackend(str(path), name=name, read_only=True), names, str(path), 0)
+    return _collect(_hdf_backend(path, name, read_only=True), names, str(path), 0)
 
 
 # -- diagnostics and summary --------------------------------------------------

@@ -697,6 +697,7 @@ SYNTHETIC_STRENGTH = {
     "resistance_tc": "beta ~ U(0.2, 0.6)",
     "asymmetric_cooling": "log_ratio ~ +-U(0.3, 0.7)",
     "nonlinear_cooling": "gamma ~ U(0.2, 0.6)",
+    "input_warp": "c ~ U(0.4, 0.6), b ~ U(0.1, 0.2) (normalised effective voltage)",
     "rate_dependence": "c ~ U(0.5, 1.5)",
     "creep": "g ~ U(0.08, 0.2), tau ~ U(100, 400) s",
     "output_saturation": "m = output mid-level, w = half output range x U(0.9, 1.3)",
@@ -732,6 +733,8 @@ def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.0
         eff = AsymmetricCooling(log_ratio=a(sign * rng.uniform(0.3, 0.7)))
     elif effect == "nonlinear_cooling":
         eff = NonlinearCooling(gamma=a(rng.uniform(0.2, 0.6)))
+    elif effect == "input_warp":
+        eff = InputWarp(c=a(rng.uniform(0.4, 0.6)), b=a(rng.uniform(0.1, 0.2)))
     elif effect == "rate_dependence":
         eff = RateDependence(c=a(rng.uniform(0.5, 1.5)))
     elif effect == "creep":

@@ -171,8 +171,10 @@ class EUPI(eqx.Module):
         """Design matrix ``(T, p)``: columns ``[s, F_sym, F_asym (tilt-major), s^2.., 1]``."""
         s = self.normalise(u)
         ops = self.operators(u)
-        powers = jnp.stack([s ** (m + 2) for m in range(np.shape(self.poly)[0])], axis=-1)
-        powers = powers.reshape(s.shape[0], np.shape(self.poly)[0])
+        n_poly = np.shape(self.poly)[0]
+        # poly_order=1 (no polynomial terms) gives an empty block, not a failing empty stack
+        powers = jnp.stack([s ** (m + 2) for m in range(n_poly)], axis=-1) if n_poly else jnp.zeros((s.shape[0], 0))
+        powers = powers.reshape(s.shape[0], n_poly)
         return jnp.concatenate([s[:, None], ops, powers, jnp.ones_like(s)[:, None]], axis=1)
 
     def linear_weights(self):

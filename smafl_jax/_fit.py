@@ -573,7 +573,9 @@ def fit(
             f"(a step left the region where the model is finite); kept the initialiser's model (loss {init_loss:.6g})"
         )
         return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)
-    if loss > init_loss * (1 + 1e-9) + 1e-300:
+    # "worse" beyond round-off: relative to the start loss and to the signal energy (exact fits end near 0)
+    energy = 0.5 * sum(float(np.sum(w * y * y)) for (_, y, _), w in zip(data, weights))
+    if loss > init_loss * (1 + 1e-9) + 1e-13 * energy:
         message = (
             f"joint refinement ({solver}) ended worse than its start (loss {loss:.6g} > {init_loss:.6g}); "
             "kept the initialiser's model"

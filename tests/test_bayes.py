@@ -283,6 +283,6 @@ def test_calibration_coverage_of_thermal_parameters():
     sys.path.insert(0, str(ROOT / "experiments"))
     import calibration
 
-    res = calibration.run_joule(n_rep=40, n_steps=1500, seed=11, progress=False)
+    res = calibration.run_joule(n_rep=60, n_steps=1500, seed=11, progress=False)
     for name in ("k1", "k2"):
         assert 0.8 <= res["coverage90"][name] <= 0.98, res["coverage90"]

@@ -15,6 +15,7 @@ from smafl_jax._effects import (
     Creep,
     Delay,
     ExtendedModel,
+    InputWarp,
     NonlinearCooling,
     OutputSaturation,
     RateDependence,
@@ -61,7 +62,7 @@ def test_no_effect_equals_base(truth, drives):
     "effect",
     [Delay(tau=jnp.asarray(1e-9)), ResistanceTC(beta=jnp.asarray(1e-9)), NonlinearCooling(gamma=jnp.asarray(1e-9)),
      AsymmetricCooling(log_ratio=jnp.asarray(0.0)), RateDependence(c=jnp.asarray(1e-9)), Creep(g=jnp.asarray(0.0), tau=jnp.asarray(50.0)),
-     OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5))],
+     OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5)), InputWarp(c=jnp.asarray(0.5), b=jnp.asarray(1e3))],
     ids=lambda e: e.name,
 )
 def test_vanishing_effect_is_base(truth, drives, effect):
@@ -69,6 +70,41 @@ def test_vanishing_effect_is_base(truth, drives, effect):
     y0 = np.asarray(sj.simulate(truth, u, 0.5))
     y1 = np.asarray(sj.simulate(ExtendedModel(truth, (effect,)), u, 0.5))
     np.testing.assert_allclose(y1, y0, atol=1e-6)
+
+
+def test_input_warp_reference(truth, drives):
+    """Warp = numpy logistic CDF rescaled to keep 0 and 1; the EUPI then runs on the warped input."""
+    from smafl_jax._effects import warp_input
+
+    s = np.linspace(-0.1, 1.1, 61)
+    c, b = 0.45, 0.12
+    S = lambda x: 1.0 / (1.0 + np.exp(-x))  # noqa: E731
+    ref = (S((s - c) / b) - S(-c / b)) / (S((1 - c) / b) - S(-c / b))
+    got = np.asarray(warp_input(jnp.asarray(s), c, b))
+    np.testing.assert_allclose(got, ref, atol=1e-12)
+    assert np.all(np.diff(got) > 0)
+    eupi = truth.hysteresis
+    u = _u(drives)
+    su = (np.asarray(u) - float(eupi.u_ref)) / float(eupi.u_span)
+    uw = float(eupi.u_ref) + float(eupi.u_span) * (S((su - c) / b) - S(-c / b)) / (S((1 - c) / b) - S(-c / b))
+    y_ref = np.asarray(sj.simulate(eupi, uw))
+    y = np.asarray(sj.simulate(ExtendedModel(eupi, (InputWarp(c=jnp.asarray(c), b=jnp.asarray(b)),)), u, 0.5))
+    np.testing.assert_allclose(y, y_ref, atol=1e-9)
+
+
+def test_branch_split_residues():
+    from smafl_jax._data import Record
+    from smafl_jax._diagnose import make_split
+    from smafl_jax._errors import UserInputError
+
+    br = np.repeat(np.arange(7), 5)
+    rec = Record.from_arrays(np.arange(br.size) * 10.0, np.tile(np.linspace(0, 1, 5), 7), np.zeros(br.size), extra={"branch": br})
+    for r in (0, 1, 2):
+        sp = make_split(rec, holdout_residue=r)
+        assert sp.test_labels == [k for k in range(1, 7) if k % 3 == r]
+        assert 0 in sp.train_labels and not set(sp.train_labels) & set(sp.test_labels)
+    with pytest.raises(UserInputError, match="holdout_residue"):
+        make_split(rec, holdout_residue=3)
 
 
 def test_fractional_delay_reference():
