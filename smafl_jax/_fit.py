@@ -73,7 +73,7 @@ def as_fit_data(data, dt=None):
 
     if isinstance(data, Record):
         data = [data]
-    elif isinstance(data, tuple) and len(data) == 2 and np.ndim(data[0]) == 1:
+    elif isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], (tuple, list, Record)) and np.ndim(data[0]) == 1:
         data = [(data[0], data[1], dt)]
     out = []
     for i, item in enumerate(data):

@@ -237,3 +237,15 @@ def test_real_forc_branch_split(real_data, tmp_path):
     doc = json.loads((out / "fit.json").read_text())
     assert doc["split"]["kind"] == "branch"
     assert np.isfinite(doc["metrics"]["validation"]["e_r_percent"])
+
+
+def test_fit_data_accepts_two_records_and_is_idempotent(datasets_dir):
+    """Two records (a 2-element list/tuple) are two records, not a (u, y) pair; normalising twice is a no-op."""
+    recs = [sj.load_record(datasets_dir / "main_loop.csv"), sj.load_record(datasets_dir / "steps.csv")]
+    once = sj.as_fit_data(recs)
+    assert len(once) == 2 and once[1][0].shape == recs[1].u.shape
+    twice = sj.as_fit_data(once)
+    assert len(twice) == 2 and all(np.array_equal(a[0], b[0]) for a, b in zip(once, twice))
+    assert len(sj.as_fit_data(tuple(recs))) == 2
+    pair = sj.as_fit_data((recs[0].u, recs[0].y), dt=0.5)
+    assert len(pair) == 1 and pair[0][2] == 0.5
