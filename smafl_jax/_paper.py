@@ -74,15 +74,15 @@ def default_real_dir():
     return Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 
 
-def _loop_figure(path, panels, title):
+def _loop_figure(path, panels, title, xlabel="voltage (V)", ylabel="displacement (mm)"):
     """Input-output loops: panels = [(label, u, y_meas, y_model)]."""
     plt = _plt()
     fig, axes = plt.subplots(1, len(panels), figsize=(5 * len(panels), 4), squeeze=False)
     for ax, (label, u, y, yhat) in zip(axes[0], panels):
         ax.plot(u, y, ".", ms=2, color="0.5", label="measured")
         ax.plot(u, yhat, "-", lw=1.2, color="C3", label="model")
-        ax.set_xlabel("input")
-        ax.set_ylabel("output")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
         ax.set_title(label)
         ax.legend(loc="upper left")
     fig.suptitle(title)
@@ -101,7 +101,8 @@ def _time_figure(path, panels, title):
         axes[1, j].plot(t, y - yhat, color="C0", lw=0.8)
         axes[1, j].axhline(0, color="k", lw=0.5)
         axes[1, j].set_xlabel("time (s)")
-        axes[1, j].set_ylabel("error")
+        axes[1, j].set_ylabel("error (mm)")
+        axes[0, j].set_ylabel("displacement (mm)")
     fig.suptitle(title)
     return _save(fig, path)
 

@@ -1,0 +1,259 @@
+"""Discrete Preisach hysteresis model (issue 6, ``nonlocal_memory``).
+
+A relay (hysteron) ``R_ab`` with switch-up threshold ``a >= b`` (switch-down)
+outputs 1 once ``u >= a``, 0 once ``u <= b`` and otherwise keeps its state.
+The model output is
+
+    y(k) = sum_ab w_ab R_ab[u](k) + gain * s(k) [if linear] + offset,   w_ab >= 0,
+
+with ``s = (u - u_ref) / u_span``.  The relays sit on the triangular grid of
+``n`` levels ``L_0 < ... < L_{n-1}``: ``(a, b) = (L_i, L_j)``, ``i >= j``, so
+``n (n + 1) / 2`` weights (flattened in ``np.tril_indices(n)`` order).  The
+diagonal ``i == j`` relays are reversible steps.  `Preisach.from_range` puts the
+levels at the centres of ``n`` equal cells of ``[u_min, u_max]``, so no level
+lies on a range end (a relay there would duplicate the offset).
+
+Why: a Preisach model has return-point (wiping-out) memory but, unlike
+play-operator (PI/EUPI) models, no congruency constraint on its minor loops;
+first-order reversal curves (FORCs) are exactly the data it is identified
+from, and held-out FORCs are predicted by interpolating the weight density.
+The model is linear in the weights: `fit_preisach` solves the bounded least
+squares with a Tikhonov (first differences of neighbouring grid weights) and
+ridge penalty, and reports the effective degrees of freedom ``trace(H)``.
+
+Initial state (``init``): ``"descended"`` (default) is the state after the
+input came down from above ``u_max`` to ``u(0)`` (relays with ``b < u(0)`` up,
+like the EUPI's default); ``"zero"`` starts every relay down (virgin state).
+For a record starting at the bottom of the range (``u(0) <= L_0``, e.g. 0 V)
+both coincide: every relay is down.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _config  # noqa: F401
+from ._constraints import positive
+from ._io import register_model
+
+__all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "relay_loop"]
+
+_INITS = ("descended", "zero")
+
+
+def preisach_levels(u_min, u_max, n_levels):
+    """Cell-centred levels ``u_min + (i + 1/2) (u_max - u_min) / n``, i = 0..n-1."""
+    n = int(n_levels)
+    if n < 1:
+        raise ValueError(f"n_levels must be >= 1, got {n_levels}")
+    h = (float(u_max) - float(u_min)) / n
+    return float(u_min) + (np.arange(n) + 0.5) * h
+
+
+def _n_from_weights(m):
+    n = int(round((np.sqrt(8 * m + 1) - 1) / 2))
+    if n * (n + 1) // 2 != m:
+        raise ValueError(f"number of relay weights must be triangular n(n+1)/2, got {m}")
+    return n
+
+
+@register_model
+class Preisach(eqx.Module):
+    """Discrete Preisach model on a triangular relay grid; `simulate(u)` gives the output."""
+
+    w: jnp.ndarray = positive()  # (n (n+1) / 2,) relay weights, np.tril_indices(n) order (i: up level, j: down level)
+    offset: jnp.ndarray
+    gain: jnp.ndarray  # linear term on s (only used if ``linear``)
+    levels: jnp.ndarray  # (n,) increasing relay thresholds
+    u_ref: jnp.ndarray
+    u_span: jnp.ndarray = positive()
+    init: str = eqx.field(static=True, default="descended")
+    linear: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        if self.init not in _INITS:
+            raise ValueError(f"Preisach init must be one of {_INITS}, got {self.init!r}")
+        nl = np.shape(self.levels)
+        if len(nl) != 1 or nl[0] < 1:
+            raise ValueError(f"levels must be a non-empty 1-D array, got shape {nl}")
+        m = nl[0] * (nl[0] + 1) // 2
+        if np.shape(self.w) != (m,):
+            raise ValueError(f"w must have shape (n(n+1)/2,) = ({m},) for {nl[0]} levels, got {np.shape(self.w)}")
+
+    @classmethod
+    def from_range(cls, u_min, u_max, *, n_levels=24, linear=False, init="descended"):
+        """Untrained model with ``n_levels`` cell-centred levels over ``[u_min, u_max]`` (weights zero; fit them)."""
+        u_min, u_max = float(u_min), float(u_max)
+        if not np.isfinite(u_min) or not np.isfinite(u_max) or u_max <= u_min:
+            raise ValueError(f"input range must be finite with u_max > u_min, got [{u_min}, {u_max}]")
+        lv = preisach_levels(u_min, u_max, n_levels)
+        n = lv.size
+        return cls(w=jnp.zeros(n * (n + 1) // 2), offset=jnp.asarray(0.0), gain=jnp.asarray(0.0), levels=jnp.asarray(lv),
+                   u_ref=jnp.asarray(u_min), u_span=jnp.asarray(u_max - u_min), init=init, linear=bool(linear))
+
+    # -- structure -------------------------------------------------------
+    @property
+    def n_levels(self):
+        return int(np.shape(self.levels)[0])
+
+    @property
+    def n_relays(self):
+        return int(np.shape(self.w)[0])
+
+    def thresholds(self):
+        """``(a, b)``: switch-up and switch-down thresholds of every relay (``a >= b``)."""
+        i, j = np.tril_indices(self.n_levels)
+        return self.levels[i], self.levels[j]
+
+    def normalise(self, u):
+        return (jnp.asarray(u, dtype=jnp.float64) - self.u_ref) / self.u_span
+
+    def _scan(self, u, weights=None):
+        """One scan over the input; per step the relay states (``weights=None``) or their weighted sum."""
+        u = jnp.asarray(u, dtype=jnp.float64)
+        a, b = self.thresholds()
+        r0 = jnp.ones_like(a) if self.init == "descended" else jnp.zeros_like(a)
+
+        def step(r, uk):
+            # up wins on a tie (a == b relays are reversible steps: 1 iff u >= a)
+            r = jnp.where(uk >= a, 1.0, jnp.where(uk <= b, 0.0, r))
+            return r, (r if weights is None else r @ weights)
+
+        _, out = jax.lax.scan(step, r0, u)
+        return out
+
+    def relays(self, u):
+        """Relay states ``(T, n_relays)`` in {0, 1}."""
+        return self._scan(u)
+
+    def features(self, u):
+        """Design matrix ``(T, p)``: columns ``[relays, s (if linear), 1]`` (linear in the weights)."""
+        R = self._scan(u)
+        s = self.normalise(u)
+        cols = [R] + ([s[:, None]] if self.linear else []) + [jnp.ones_like(s)[:, None]]
+        return jnp.concatenate(cols, axis=1)
+
+    def linear_weights(self):
+        """Weights in the column order of `features`."""
+        parts = [self.w] + ([jnp.reshape(self.gain, (1,))] if self.linear else []) + [jnp.reshape(self.offset, (1,))]
+        return jnp.concatenate(parts)
+
+    def nonnegative_columns(self):
+        """Bool mask over `features` columns whose weights must be >= 0 (relays, linear gain)."""
+        return np.concatenate([np.ones(self.n_relays + int(self.linear), bool), np.zeros(1, bool)])
+
+    def with_linear_weights(self, theta):
+        """Copy with weights taken from ``theta`` (column order of `features`)."""
+        theta = jnp.asarray(theta, dtype=jnp.float64)
+        m = self.n_relays
+        expected = m + int(self.linear) + 1
+        if theta.shape != (expected,):
+            raise ValueError(f"expected {expected} linear weights, got shape {theta.shape}")
+        gain = theta[m] if self.linear else self.gain
+        return eqx.tree_at(lambda p: (p.w, p.gain, p.offset), self, (theta[:m], gain, theta[-1]))
+
+    # -- evaluation ------------------------------------------------------
+    def simulate(self, u, dt=None):
+        """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
+        del dt
+        y = self._scan(u, self.w) + self.offset
+        if self.linear:
+            y = y + self.gain * self.normalise(u)
+        return y
+
+
+def relay_loop(u, a, b, init_up):
+    """Plain numpy reference of the relay bank (tests): states ``(T, n)``."""
+    r = np.ones(len(a)) if init_up else np.zeros(len(a))
+    out = np.empty((len(u), len(a)))
+    for k, uk in enumerate(u):
+        for m in range(len(a)):
+            if uk >= a[m]:
+                r[m] = 1.0
+            elif uk <= b[m]:
+                r[m] = 0.0
+        out[k] = r
+    return out
+
+
+def tikhonov_matrix(n):
+    """First differences of neighbouring grid weights (along the up and the down level), ``(n_pairs, n(n+1)/2)``."""
+    i, j = np.tril_indices(n)
+    index = {(ii, jj): k for k, (ii, jj) in enumerate(zip(i, j))}
+    rows = []
+    for (ii, jj), k in index.items():
+        for nb in ((ii + 1, jj), (ii, jj + 1)):
+            if nb in index:
+                rows.append((k, index[nb]))
+    D = np.zeros((len(rows), len(index)))
+    for r, (k, l) in enumerate(rows):
+        D[r, k], D[r, l] = -1.0, 1.0
+    return D
+
+
+_features_jit = eqx.filter_jit(lambda m, u: m.features(u))
+
+
+def design(model, segments):
+    """Stacked features and targets of ``segments`` (each ``(u, y)`` or ``(u, y, mask)``; each simulated from its start)."""
+    rows, ys = [], []
+    for seg in segments:
+        u, y = seg[0], seg[1]
+        mask = seg[2] if len(seg) > 2 else np.ones(len(u), bool)
+        F = np.asarray(_features_jit(model, jnp.asarray(u, dtype=jnp.float64)))
+        rows.append(F[mask])
+        ys.append(np.asarray(y, float)[mask])
+    return np.concatenate(rows), np.concatenate(ys)
+
+
+def solve_penalised(A, y, nonneg, P, lam):
+    """``min ||A x - y||^2 + lam x' P x`` s.t. ``x[nonneg] >= 0`` (BVLS on the Cholesky-reduced normal equations).
+
+    Returns ``(x, dof)`` with ``dof = trace(H)``, the hat matrix restricted to
+    the free (non-clamped) columns: the effective number of parameters.
+    """
+    from scipy.linalg import cho_factor, solve_triangular
+    from scipy.optimize import lsq_linear
+
+    G = A.T @ A + lam * P
+    jitter = 1e-10 * max(np.trace(A.T @ A) / A.shape[1], 1e-300)
+    G[np.diag_indices_from(G)] += jitter
+    R = np.triu(cho_factor(G, lower=False)[0])
+    rhs = solve_triangular(R.T, A.T @ y, lower=True)
+    lb = np.where(nonneg, 0.0, -np.inf)
+    x = lsq_linear(R, rhs, bounds=(lb, np.full_like(lb, np.inf)), method="bvls", tol=1e-12).x
+    free = ~nonneg | (x > 1e-10 * max(np.max(np.abs(x)), 1e-300))
+    Af = A[:, free]
+    Gf = Af.T @ Af + lam * P[np.ix_(free, free)]
+    Gf[np.diag_indices_from(Gf)] += jitter
+    dof = float(np.trace(np.linalg.solve(Gf, Af.T @ Af)))
+    return x, dof
+
+
+def penalty_matrix(model, smooth, ridge=0.0):
+    """``P`` over the feature columns: ``smooth * D'D + ridge * I`` on the relay weights (columns scaled per level count)."""
+    n, m = model.n_levels, model.n_relays
+    p = m + int(model.linear) + 1
+    D = tikhonov_matrix(n)
+    P = np.zeros((p, p))
+    P[:m, :m] = smooth * (D.T @ D) + ridge * np.eye(m)
+    return P
+
+
+def fit_preisach(model, segments, *, lam=1e-2, ridge=0.0):
+    """Weights of ``model`` by penalised bounded least squares on ``segments``; returns ``(model, info)``.
+
+    The penalty is ``lam * n_rows * (||D w||^2 + ridge ||w||^2)`` with ``D``
+    the first differences of neighbouring grid weights, so ``lam`` is per
+    sample (comparable across record lengths).
+    """
+    A, y = design(model, segments)
+    P = penalty_matrix(model, 1.0, ridge) * (lam * A.shape[0])
+    x, dof = solve_penalised(A, y, model.nonnegative_columns(), P, 1.0)
+    fitted = model.with_linear_weights(jnp.asarray(x))
+    res = A @ x - y
+    return fitted, {"sse": float(res @ res), "n": int(A.shape[0]), "dof": dof, "lam": lam, "ridge": ridge,
+                    "n_levels": model.n_levels, "n_nonzero": int(np.sum(x[: model.n_relays] > 0))}
