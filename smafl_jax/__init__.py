@@ -43,3 +43,4 @@ from ._sweep import SweepResult, stack_models, sweep
 # --- diagnosis (issue 6) ---
 from ._effects import EFFECT_NAMES, EFFECTS, ExtendedModel  # noqa: E402
 from ._diagnose import diagnose  # noqa: E402
+from ._preisach import Preisach  # noqa: E402

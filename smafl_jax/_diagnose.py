@@ -29,6 +29,14 @@ Procedure (`diagnose`):
    the best accepted one is selected, and a second effect is added greedily only
    if it passes the same test against the one-effect model.  Nothing accepted:
    ``selected = []`` and the strongest remaining residual correlate is reported.
+6. **Base replacement** ``nonlocal_memory`` (rate-free records only: a
+   ``branch`` column or dt >= 5 s): a discrete Preisach model
+   (`smafl_jax._preisach`) replaces the EUPI; grid size and Tikhonov strength
+   are chosen by inner cross-validation on the training segments only; it has
+   no score test (it is not nested in the base), so it is always fitted there
+   and competes under the same held-out RMSE + BIC rule, its parameter count
+   being the effective degrees of freedom ``trace(H)``.  When it is selected no
+   second effect is added (the catalogue effects act on the EUPI).
 """
 
 from __future__ import annotations
@@ -61,6 +69,7 @@ from ._effects import (
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._metrics import metrics
+from ._preisach import Preisach, cv_fit_preisach
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
 from ._thermal import JouleThermal
 
@@ -182,7 +191,8 @@ def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
 
 @eqx.filter_jit
 def _sim(model, u, dt, load):
-    return model.simulate(u, dt, load=load)
+    # load=None is static here; models without a load input (Preisach) take (u, dt)
+    return model.simulate(u, dt) if load is None else model.simulate(u, dt, load=load)
 
 
 @eqx.filter_jit
@@ -493,10 +503,23 @@ def _train_sse(model, segs):
     return float(sum(np.sum((simulate_segment(model, s) - s.y)[s.mask] ** 2) for s in segs))
 
 
-def information_criteria(model, segs):
+#: Catalogue entry of the Preisach base replacement (see module docstring, step 6).
+NONLOCAL_MEMORY = {
+    "name": "nonlocal_memory",
+    "physics": ("Return-point (wiping-out) memory without congruency: the SMA's phase-fraction hysteresis is a Preisach-type "
+                "distribution of hysterons (relays switching up at a, down at b <= a); first-order reversal curves identify "
+                "it, and play-operator (PI/EUPI) models cannot represent its non-congruent minor loops. Offered for "
+                "rate-free records only."),
+    "parameters": {"w_ab": "hysteron weights on the triangular level grid (>= 0)",
+                   "n_levels, lam": "grid size and Tikhonov strength, chosen by inner CV on the training segments"},
+}
+
+
+def information_criteria(model, segs, k=None):
     n = int(sum(s.mask.sum() for s in segs))
     sse = _train_sse(model, segs)
-    k = n_parameters(model)
+    if k is None:
+        k = n_parameters(model)
     ll = n * np.log(max(sse, 1e-300) / n)
     return {"n": n, "sse": sse, "k": k, "aic": float(ll + 2 * k), "bic": float(ll + k * np.log(n))}
 
@@ -562,7 +585,8 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
     base0, base_rule = choose_base(record)
     rate_free = is_rate_free(record)
     split = make_split(record, holdout_residue=holdout_residue)
-    names = applicable_effects(base0, split, rate_free) if effects is None else list(effects)
+    names = applicable_effects(base0, split, rate_free) if effects is None else [n for n in effects if n != NONLOCAL_MEMORY["name"]]
+    offer_preisach = rate_free and (effects is None or NONLOCAL_MEMORY["name"] in effects)
     unknown = [n for n in names if n not in EFFECTS]
     if unknown:
         raise UserInputError(f"unknown effect(s) {unknown}; catalogue: {list(EFFECTS)}")
@@ -614,6 +638,10 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
             entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
             fitted[name] = (m, te["rmse"], ic)
         candidates.append(entry)
+    if offer_preisach:
+        entry, pm = _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose)
+        candidates.append(entry)
+        fitted[entry["name"]] = pm
 
     accepted = sorted([c for c in candidates if c.get("accepted")], key=lambda c: c["heldout_rmse"])
     selected, chosen = [], base
@@ -622,8 +650,10 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
         selected, chosen = [first], fitted[first][0]
         cur_h, cur_ic = fitted[first][1], fitted[first][2]
         for c in accepted[1:]:
-            if len(selected) >= max_effects:
+            if len(selected) >= max_effects or isinstance(chosen, Preisach):
                 break
+            if c["name"] == NONLOCAL_MEMORY["name"]:
+                continue  # a base replacement, not an effect to add
             m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
             _, te2 = _metrics_pair(m2, split)
             ic2 = information_criteria(m2, split.train)
@@ -649,8 +679,9 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
         "candidates": candidates,
         "selected": selected,
         "extended": {"effects": selected, "train": ext_tr, "heldout": ext_te, "train_rmse": ext_tr["rmse"], "heldout_rmse": ext_te["rmse"],
-                     "information_criteria": information_criteria(chosen, split.train),
-                     "parameters": {n: _effect_params(chosen.get(n)) for n in selected},
+                     "information_criteria": (fitted[selected[0]][2] if isinstance(chosen, Preisach) else information_criteria(chosen, split.train)),
+                     "parameters": {n: (_preisach_params(fitted[n][3]) if n == NONLOCAL_MEMORY["name"] else _effect_params(chosen.get(n)))
+                                    for n in selected},
                      "residuals_heldout": {"whiteness": whiteness_report(ext_res_te, np.concatenate([s.u[s.mask] for s in split.test]))}},
         "improvement": {"heldout_rmse_ratio": ext_te["rmse"] / base_te["rmse"] if base_te["rmse"] > 0 else 1.0,
                         "heldout_rmse_reduction_percent": 100.0 * (1.0 - ext_te["rmse"] / base_te["rmse"]) if base_te["rmse"] > 0 else 0.0,
@@ -662,6 +693,32 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
     result["_residual_arrays"] = {"base_train": res_tr, "base_heldout": res_te, "ext_train": ext_res_tr, "ext_heldout": ext_res_te}
     unwrapped = chosen if selected else base.base
     return result, base.base, unwrapped, split
+
+
+def _preisach_params(info):
+    return {"n_levels": info["n_levels"], "lam": info["lam"], "effective_dof": info["dof"], "n_nonzero_weights": info["n_nonzero"]}
+
+
+def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
+    """Fit the Preisach replacement (inner CV on the training segments) and score it like an effect candidate."""
+    t0 = time.time()
+    u = np.asarray(record.u, float)
+    pm, info = cv_fit_preisach(split.train, float(u.min()), float(u.max()))
+    tr, te = _metrics_pair(pm, split)
+    ic = information_criteria(pm, split.train, k=info["dof"])
+    _log(f"  fit nonlocal_memory (Preisach): n_levels {info['n_levels']}, lam {info['lam']:.0e}, dof {info['dof']:.1f}, "
+         f"held-out RMSE {te['rmse']:.4g}, {time.time() - t0:.1f} s", verbose)
+    nan = float("nan")
+    entry = {"name": NONLOCAL_MEMORY["name"], "base_replacement": True, "plausible": True, "fitted": True,
+             "evidence": {"partial_r2": nan, "corr": nan, "n_eff": nan, "lm_stat": nan, "p_value": nan, "probe": {},
+                          "note": "base replacement (not nested in the base): no score test; always fitted on rate-free records"},
+             "train_rmse": tr["rmse"], "heldout_rmse": te["rmse"], "heldout_e_r_percent": te["e_r_percent"],
+             "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
+             "delta_bic": ic["bic"] - base_ic["bic"], "delta_aic": ic["aic"] - base_ic["aic"], "added_parameters": ic["k"] - base_ic["k"],
+             "parameters": _preisach_params(info),
+             "fit": {"inner_cv": info["inner_cv"], "cv_table": info["cv_table"], "seconds": time.time() - t0}}
+    entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
+    return entry, (pm, te["rmse"], ic, info)
 
 
 def resid_after(model, split, resid):

@@ -39,7 +39,7 @@ from . import _config  # noqa: F401
 from ._constraints import positive
 from ._io import register_model
 
-__all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "relay_loop"]
+__all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "cv_fit_preisach", "relay_loop"]
 
 _INITS = ("descended", "zero")
 
@@ -201,8 +201,7 @@ def design(model, segments):
     """Stacked features and targets of ``segments`` (each ``(u, y)`` or ``(u, y, mask)``; each simulated from its start)."""
     rows, ys = [], []
     for seg in segments:
-        u, y = seg[0], seg[1]
-        mask = seg[2] if len(seg) > 2 else np.ones(len(u), bool)
+        u, y, mask = _as_seg(seg)
         F = np.asarray(_features_jit(model, jnp.asarray(u, dtype=jnp.float64)))
         rows.append(F[mask])
         ys.append(np.asarray(y, float)[mask])
@@ -257,3 +256,71 @@ def fit_preisach(model, segments, *, lam=1e-2, ridge=0.0):
     res = A @ x - y
     return fitted, {"sse": float(res @ res), "n": int(A.shape[0]), "dof": dof, "lam": lam, "ridge": ridge,
                     "n_levels": model.n_levels, "n_nonzero": int(np.sum(x[: model.n_relays] > 0))}
+
+
+#: Default inner-CV grids: levels per input range and penalty per sample.
+N_LEVELS_GRID = (18, 24, 35)
+LAM_GRID = (1e-5, 1e-4, 1e-3, 1e-2, 1e-1)
+
+
+def _as_seg(seg):
+    if hasattr(seg, "u"):  # a diagnosis Segment
+        return seg.u, seg.y, seg.mask
+    return seg[0], seg[1], (seg[2] if len(seg) > 2 else np.ones(len(seg[0]), bool))
+
+
+def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_grid=LAM_GRID, ridge=0.0, linear=False,
+                    init="descended", keep=None, verbose=False):
+    """Preisach fit with ``(n_levels, lam)`` chosen by inner cross-validation on ``segments`` only.
+
+    Inner folds: leave one segment out, except the segments in ``keep`` (default:
+    the one with the widest input range, e.g. the major loop, which always
+    trains); with a single segment, its last 30 % (of the scored samples) is the
+    inner validation block.  Criterion: pooled inner held-out RMSE.  The chosen
+    setting is refitted on all segments.  Returns ``(model, info)``; ``info``
+    holds the CV table, the choice and the effective degrees of freedom.
+    """
+    import sys
+
+    segs = [_as_seg(s) for s in segments]
+    if keep is None:
+        keep = {int(np.argmax([np.ptp(np.asarray(u)) for u, _, _ in segs]))}
+    if len(segs) - len(keep) >= 2:
+        folds = [([j for j in range(len(segs)) if j != i], [i]) for i in range(len(segs)) if i not in keep]
+        inner = "leave-one-segment-out (widest-range segment always trained)"
+    else:  # time block inside one record: simulate from the start, score the block
+        u, y, mask = segs[0]
+        idx = np.flatnonzero(mask)
+        cut = idx[int(round(0.7 * idx.size))]
+        tr_mask, va_mask = mask & (np.arange(len(u)) < cut), mask & (np.arange(len(u)) >= cut)
+        segs = [(u, y, tr_mask), (u, y, va_mask)] + segs[1:]
+        folds = [([0] + list(range(2, len(segs))), [1])]
+        inner = "time block: last 30 % of the training samples"
+    table = []
+    best = None
+    for n in n_levels_grid:
+        m0 = Preisach.from_range(u_min, u_max, n_levels=n, linear=linear, init=init)
+        blocks = [design(m0, [s]) for s in segs]
+        nonneg = m0.nonnegative_columns()
+        P1 = penalty_matrix(m0, 1.0, ridge)
+        for lam in lam_grid:
+            sse, cnt = 0.0, 0
+            for tr, va in folds:
+                A = np.concatenate([blocks[i][0] for i in tr])
+                y = np.concatenate([blocks[i][1] for i in tr])
+                x, _ = solve_penalised(A, y, nonneg, P1 * (lam * A.shape[0]), 1.0)
+                for i in va:
+                    r = blocks[i][0] @ x - blocks[i][1]
+                    sse += float(r @ r)
+                    cnt += r.size
+            row = {"n_levels": int(n), "lam": float(lam), "cv_rmse": float(np.sqrt(sse / max(cnt, 1)))}
+            table.append(row)
+            if verbose:
+                print(f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}", file=sys.stderr, flush=True)
+            if best is None or row["cv_rmse"] < best["cv_rmse"]:
+                best = row
+    full = [_as_seg(s) for s in segments]
+    model, info = fit_preisach(Preisach.from_range(u_min, u_max, n_levels=best["n_levels"], linear=linear, init=init), full,
+                               lam=best["lam"], ridge=ridge)
+    info.update({"inner_cv": inner, "n_inner_folds": len(folds), "cv_table": table, "chosen": best})
+    return model, info

@@ -116,7 +116,8 @@ def write_diagnosis(out, rec, res, base, ext, split):
     atomic_write_json(out / "diagnosis.json", to_jsonable(res))
     save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
     save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
-    wrap = lambda m: m if isinstance(m, ExtendedModel) else ExtendedModel(m, ())  # noqa: E731
+    # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
+    wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m  # noqa: E731
     _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model")
     _plot(out / "residuals_after.png", split, lambda s: simulate_segment(wrap(ext), s), f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})")
     atomic_write_text(out / "report.md", _report_md(rec, res))

@@ -227,3 +227,40 @@ def test_confusion_row(truth, drives, effect):
     else:
         assert res["selected"][:1] == [effect]
         assert res["extended"]["heldout_rmse"] < 0.95 * res["base"]["heldout_rmse"]
+
+
+def _preisach_forc_record(dt, with_branch, seed=0):
+    """Rate-free FORC record from a known Preisach model (major loop + reversals), optionally without the branch column."""
+    from smafl_jax._data import Record
+    from smafl_jax._preisach import Preisach
+
+    rng = np.random.default_rng(seed)
+    m = Preisach.from_range(0.0, 3.5, n_levels=12)
+    a, b = (np.asarray(x) for x in m.thresholds())
+    w = np.exp(-0.5 * (((a - 2.6) / 0.4) ** 2 + ((b - 1.9) / 0.5) ** 2)) + 0.05
+    m = m.with_linear_weights(jnp.asarray(np.r_[w, 0.0]))
+    us, br = [], []
+    for k, top in enumerate([3.5, 3.2, 3.0, 2.8, 2.6, 2.4, 2.2, 2.0, 1.8]):
+        up = np.arange(0.0, top + 1e-9, 0.1)
+        us.append(np.r_[up, up[::-1]])
+        br.append(np.full(us[-1].size, k))
+    y = np.concatenate([np.asarray(m.simulate(jnp.asarray(u))) for u in us]) + 0.01 * rng.standard_normal(sum(u.size for u in us))
+    u = np.concatenate(us)
+    extra = {"branch": np.concatenate(br).astype(float)} if with_branch else {}
+    return Record.from_arrays(np.arange(u.size) * dt, u, y, input_name="voltage_V", output_name="displacement_mm", extra=extra)
+
+
+def test_nonlocal_memory_selected_on_rate_free_preisach_record():
+    rec = _preisach_forc_record(10.0, True)
+    res, _, ext, _ = diagnose(rec, effects=["nonlocal_memory"], verbose=False)
+    assert res["selected"] == ["nonlocal_memory"] and isinstance(ext, sj.Preisach)
+    cand = res["candidates"][-1]
+    assert cand["name"] == "nonlocal_memory" and cand["accepted"]
+    assert 0 < cand["parameters"]["effective_dof"] < ext.n_relays + 1  # BIC counts trace(H), not the nominal weights
+    assert res["extended"]["heldout_rmse"] < 0.5 * res["base"]["heldout_rmse"]
+
+
+def test_nonlocal_memory_not_offered_with_dynamics():
+    rec = _preisach_forc_record(0.5, False)  # dt 0.5 s, no branch column: not rate-free (cascade base)
+    res, _, _, _ = diagnose(rec, effects=["nonlocal_memory"], verbose=False)
+    assert all(c["name"] != "nonlocal_memory" for c in res["candidates"]) and res["selected"] == []
