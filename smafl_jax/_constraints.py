@@ -13,19 +13,40 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import _config  # noqa: F401
 
-__all__ = ["positive", "constrain", "unconstrain", "log_jacobian", "positive_mask", "POSITIVE_FLOOR"]
+__all__ = ["positive", "parameter", "as_float_array", "constrain", "unconstrain", "log_jacobian", "positive_mask", "POSITIVE_FLOOR"]
 
 #: Smallest value `unconstrain` maps; exact zeros (e.g. from NNLS) become this.
 POSITIVE_FLOOR = 1e-10
 
 
+def as_float_array(x):
+    """Field converter: numbers become float64 arrays, so they are parameters, not static constants.
+
+    Without it ``JouleThermal(0.05, 0.04)`` would hold Python floats, which
+    `equinox` treats as non-array leaves that no fit or sampler ever moves.
+    """
+    if x is None or isinstance(x, jax.core.Tracer) or not isinstance(x, (int, float, list, tuple, np.ndarray, np.generic, jax.Array)):
+        return x
+    if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
+        return x
+    return jnp.asarray(x, dtype=jnp.float64)
+
+
+def parameter(**kwargs):
+    """Declare a free (unconstrained) numeric `equinox.Module` field, converted to a float64 array."""
+    kwargs.setdefault("converter", as_float_array)
+    return eqx.field(**kwargs)
+
+
 def positive(**kwargs):
-    """Declare an `equinox.Module` field that must stay > 0."""
+    """Declare an `equinox.Module` field that must stay > 0 (converted to a float64 array)."""
     metadata = dict(kwargs.pop("metadata", {}) or {})
     metadata["constraint"] = "positive"
+    kwargs.setdefault("converter", as_float_array)
     return eqx.field(metadata=metadata, **kwargs)
 
 

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
-from ._constraints import positive
+from ._constraints import parameter, positive
 from ._io import register_model
 from ._operators import consistent_initial_state, play, play_weighted
 
@@ -71,12 +71,12 @@ class EUPI(eqx.Module):
     gain: jnp.ndarray = positive()
     v: jnp.ndarray = positive()
     w: jnp.ndarray = positive()
-    poly: jnp.ndarray
-    offset: jnp.ndarray
+    poly: jnp.ndarray = parameter()
+    offset: jnp.ndarray = parameter()
     r_sym: jnp.ndarray = positive()
     r_asym: jnp.ndarray = positive()
     alpha: jnp.ndarray = positive()
-    u_ref: jnp.ndarray
+    u_ref: jnp.ndarray = parameter()
     u_span: jnp.ndarray = positive()
     init: str = eqx.field(static=True, default="descended")
     method: str = eqx.field(static=True, default="scan")

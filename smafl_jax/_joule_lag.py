@@ -14,6 +14,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from . import _config  # noqa: F401
+from ._constraints import parameter
 from ._io import register_model
 from ._thermal import JouleThermal
 
@@ -25,7 +26,7 @@ class JouleLag(eqx.Module):
     """First-order lag from ``U^2`` to the output, with an offset (paper's eq. 7)."""
 
     thermal: JouleThermal = eqx.field(default_factory=JouleThermal)
-    offset: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0.0))
+    offset: jnp.ndarray = parameter(default_factory=lambda: jnp.asarray(0.0))
 
     def simulate(self, u, dt):
         """Output for voltage record ``u`` sampled every ``dt`` seconds."""

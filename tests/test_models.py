@@ -180,3 +180,14 @@ def test_simulate_batch_shapes(rng):
         sj.simulate_batch(casc, u[0], 0.5)
     with pytest.raises(ValueError, match="at least 2"):
         sj.simulate(casc, u[0, :1], 0.5)
+
+
+def test_plain_numbers_become_trainable_arrays():
+    """Python floats in a model must still be parameters (a float leaf would be silently frozen by fits)."""
+    th = sj.JouleThermal(0.05, 0.04)
+    assert isinstance(th.k1, jax.Array) and th.k1.dtype == jnp.float64
+    spec = sj.default_trainable(sj.Cascade(th, sj.EUPI.from_range(0.0, 7.4)))
+    assert spec.thermal.k1 is True and spec.thermal.k2 is False
+    e = sj.EUPI.from_range(0.0, 7.4)
+    e2 = type(e)(**{**{f: getattr(e, f) for f in e.__dataclass_fields__}, "offset": 1, "u_ref": 0})
+    assert e2.offset.dtype == jnp.float64 and e2.u_ref.dtype == jnp.float64
