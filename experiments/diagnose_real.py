@@ -1,6 +1,6 @@
 """Diagnosis of the real records (issue 6): SMA wing FORC data and NiTi water-step records.
 
-Run:  python experiments/diagnose_real.py [--data ../shared/data/real] [--out experiments/results/diagnose_real]
+Run:  python experiments/diagnose_real.py [--data ../shared/data/real] [--out experiments/results/diagnose_real] [--only water_step]
 Writes one `smafl diagnose` output folder per record and summary.json / summary.md.
 Data are read in place (never copied); sources are cited in ../shared/data/real/README.md.
 """
@@ -28,10 +28,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
     ap.add_argument("--out", default=str(ROOT / "experiments" / "results" / "diagnose_real"))
+    ap.add_argument("--only", default=None, help="run only the records whose file name contains this text")
     a = ap.parse_args(argv)
     out = prepare_out_dir(a.out)
     rows = []
     for name, inp, outp in RECORDS:
+        if a.only and a.only not in name:
+            continue
         path = Path(a.data) / name
         if not path.exists():
             print(f"skip {name}: not found under {a.data}", file=sys.stderr)

@@ -65,6 +65,7 @@ from ._effects import (
     OutputSaturation,
     RateDependence,
     ResistanceTC,
+    SensorLag,
 )
 from ._errors import UserInputError
 from ._eupi import EUPI
@@ -313,6 +314,7 @@ def linear_init(model, segs):
 _NONLINEAR = {
     "k1": [("k1", "log", 0.5)],
     "delay": [("tau", "log", 0.5)],
+    "sensor_lag": [("tau", "log", 0.5)],
     "ambient_drift": [("drift", "lin", 0.005)],
     "resistance_tc": [("beta", "log", 0.5)],
     "asymmetric_cooling": [("log_ratio", "lin", 0.2)],
@@ -360,6 +362,9 @@ def _effect_grid(name, ctx):
     dt, yr, ym = ctx["dt"], ctx["y_range"], ctx["y_mid"]
     if name == "delay":
         return [Delay(tau=a(dt * 2.0**k)) for k in range(6)]
+    if name == "sensor_lag":
+        # lags of 1 to 128 samples: thermocouple/heat-conduction lags span seconds to a minute
+        return [SensorLag(tau=a(dt * 2.0**k)) for k in range(0, 8)]
     if name == "ambient_drift":
         return [AmbientDrift(drift=a(d)) for d in (-0.05, -0.01, 0.01, 0.05)]
     if name == "resistance_tc":
@@ -387,6 +392,9 @@ def _probe(name, ctx):
     yr, lo = ctx["y_range"], ctx["y_lo"]
     if name == "delay":
         return [Delay(tau=a(ctx["dt"]))]
+    if name == "sensor_lag":
+        # a weak lag equals a weak delay to first order (x - tau dx/dt); longer lags carry the smoothing signature
+        return [SensorLag(tau=a(ctx["dt"] * f)) for f in (1.0, 8.0, 32.0)]
     if name == "ambient_drift":
         return [AmbientDrift(drift=a(0.01))]
     if name == "resistance_tc":
@@ -750,6 +758,7 @@ def _effect_params(e):
 #: Random strength ranges of the synthetic effects (chosen to be clearly above 3 um noise).
 SYNTHETIC_STRENGTH = {
     "delay": "tau ~ U(2, 8) s",
+    "sensor_lag": "tau ~ U(5, 20) s",
     "ambient_drift": "drift ~ +-U(0.005, 0.02) q_ref per 1000 s",
     "resistance_tc": "beta ~ U(0.2, 0.6)",
     "asymmetric_cooling": "log_ratio ~ +-U(0.3, 0.7)",
@@ -782,6 +791,8 @@ def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.0
         eff = None
     elif effect == "delay":
         eff = Delay(tau=a(rng.uniform(2, 8)))
+    elif effect == "sensor_lag":
+        eff = SensorLag(tau=a(rng.uniform(5, 20)))
     elif effect == "ambient_drift":
         eff = AmbientDrift(drift=a(sign * rng.uniform(0.005, 0.02)))
     elif effect == "resistance_tc":

@@ -5,7 +5,7 @@
 effect is an `equinox.Module` registered for JSON, so an extended model saves,
 loads and runs with ``smafl simulate`` like any other model.  The pipeline is
 
-    u --delay--> x --thermal (+ resistance_tc, asymmetric_cooling,
+    u --delay--> --sensor_lag--> x --thermal (+ resistance_tc, asymmetric_cooling,
     nonlinear_cooling, ambient_drift)--> u_eff --input_warp--> --EUPI
       (+ rate_dependence)--> H --creep--> --output_saturation-->
       --load_dependence--> y
@@ -58,6 +58,7 @@ __all__ = [
     "EFFECTS",
     "EFFECT_NAMES",
     "Delay",
+    "SensorLag",
     "AmbientDrift",
     "ResistanceTC",
     "AsymmetricCooling",
@@ -95,6 +96,21 @@ class Delay(Effect):
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = "The output responds to the input tau seconds late (amplifier/DAQ latency, heat conduction from the SMA wire into the polymer, sensor filtering)."
     parameters: ClassVar[dict] = {"tau": "delay in seconds (> 0), fractional delays by linear interpolation"}
+    tau: jnp.ndarray = positive()
+
+
+@register_model
+class SensorLag(Effect):
+    """First-order lag between the measured input and what the hysteresis sees (smoothing, unlike `Delay`)."""
+
+    name: ClassVar[str] = "sensor_lag"
+    needs: ClassVar[tuple] = ("time",)
+    physics: ClassVar[str] = (
+        "The transforming material follows the measured input through a first-order lag: heat conduction from the bath "
+        "or the thermocouple into the wire, or the sensor's own response time. The hysteresis sees x'(k) = x'(k-1) + "
+        "(1 - exp(-dt/tau)) (x(k) - x'(k-1)), x'(0) = x(0) (exact for a zero-order-hold input); unlike a transport delay "
+        "it smooths steps.")
+    parameters: ClassVar[dict] = {"tau": "lag time constant in seconds (> 0)"}
     tau: jnp.ndarray = positive()
 
 
@@ -217,7 +233,7 @@ class LoadDependence(Effect):
 
 EFFECTS = {
     cls.name: cls
-    for cls in (Delay, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, InputWarp, RateDependence, Creep, OutputSaturation,
+    for cls in (Delay, SensorLag, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, InputWarp, RateDependence, Creep, OutputSaturation,
                 LoadDependence)
 }
 EFFECT_NAMES = tuple(EFFECTS)
@@ -350,11 +366,14 @@ class ExtendedModel(eqx.Module):
         return q
 
     def hysteresis_input(self, u, dt):
-        """Signal the EUPI sees (after delay, thermal model and drift)."""
+        """Signal the EUPI sees (after delay, sensor lag, thermal model and drift)."""
         u = jnp.asarray(u, dtype=jnp.float64)
         dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
         d = self.get("delay")
         x = fractional_delay(u, d.tau / dt) if d is not None else u
+        lag = self.get("sensor_lag")
+        if lag is not None:
+            x = _lowpass(x, dt, lag.tau)
         if isinstance(self.base, Cascade):
             return _safe_sqrt(self._thermal(x, dt))
         amb = self.get("ambient_drift")
