@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import os
 from pathlib import Path
 
 from ._io import atomic_write_text
@@ -55,7 +56,8 @@ class Report:
         self.blocks.append(("table", list(headers), [[fmt(c) for c in r] for r in rows]))
 
     def figure(self, path, caption):
-        self.blocks.append(("fig", Path(path), caption))
+        # resolved now: a relative path would otherwise be joined to the report folder twice
+        self.blocks.append(("fig", Path(path).resolve(), caption))
 
     # -- rendering -------------------------------------------------------
     def markdown(self, base: Path):
@@ -73,7 +75,7 @@ class Report:
                 out += ["| " + " | ".join(r) + " |" for r in b[2]]
                 out.append("")
             elif b[0] == "fig":
-                rel = b[1].relative_to(base) if b[1].is_absolute() and b[1].is_relative_to(base) else b[1]
+                rel = b[1].relative_to(base) if b[1].is_relative_to(base) else Path(os.path.relpath(b[1], base))
                 out += [f"![{b[2]}]({rel.as_posix()})", "", f"*{b[2]}*", ""]
         return "\n".join(out)
 
@@ -92,8 +94,7 @@ class Report:
                 rows = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in r) + "</tr>" for r in b[2])
                 body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
             elif b[0] == "fig":
-                path = b[1] if b[1].is_absolute() else base / b[1]
-                data = base64.b64encode(path.read_bytes()).decode("ascii")
+                data = base64.b64encode(b[1].read_bytes()).decode("ascii")
                 body.append(
                     f'<figure><img alt="{e(b[2])}" src="data:image/png;base64,{data}"/>'
                     f"<figcaption>{_inline(b[2])}</figcaption></figure>"

@@ -2,6 +2,7 @@
 
 import json
 import math
+import os
 import re
 
 import pytest
@@ -22,9 +23,15 @@ def _finite_numbers(obj, path="paper.json"):
 
 @pytest.fixture(scope="module")
 def paper_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("paper")
-    assert cli_main(["paper", "--quick", "--out", str(out)]) == 0
-    return out
+    # run as a user does: from a working folder, with the default relative --out
+    work = tmp_path_factory.mktemp("paper")
+    cwd = os.getcwd()
+    os.chdir(work)
+    try:
+        assert cli_main(["paper", "--quick"]) == 0
+    finally:
+        os.chdir(cwd)
+    return work / "out" / "paper"
 
 
 def test_report_files_and_figures_exist(paper_run):
