@@ -149,15 +149,10 @@ def _jsonable(x):
 
 def load_priors(path):
     """``{parameter name: Prior}`` from a JSON file ``{"thermal.k1": {"dist": ..., ...}, ...}``."""
+    from ._io import read_json_file
+
     path = Path(path)
-    if not path.exists():
-        raise UserInputError(f"{path}: priors file not found")
-    try:
-        doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise UserInputError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(doc, dict):
-        raise UserInputError(f"{path}: expected an object mapping parameter names to priors")
+    doc = read_json_file(path, "priors file")
     doc = doc.get("priors", doc)
     return {str(k): Prior.from_dict(v, where=f"{path}: {k}") for k, v in doc.items()}
 

@@ -43,6 +43,7 @@ __all__ = [
     "atomic_write_csv",
     "prepare_out_dir",
     "to_jsonable",
+    "read_json_file",
 ]
 
 FORMAT = "smafl-model"
@@ -128,16 +129,24 @@ def save_model(path, model, **extra):
     atomic_write_json(path, doc)
 
 
-def load_model_file(path):
-    """``(model, document)`` from a model file or a ``fit.json``."""
+def read_json_file(path, what="file"):
+    """Parsed JSON object from ``path``; `UserInputError` naming the file when missing or malformed."""
     path = Path(path)
     if not path.exists():
-        raise UserInputError(f"{path}: file not found")
+        raise UserInputError(f"{path}: {what} not found")
     try:
         doc = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise UserInputError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(doc, dict) or "model" not in doc:
+    if not isinstance(doc, dict):
+        raise UserInputError(f"{path}: expected a JSON object")
+    return doc
+
+
+def load_model_file(path):
+    """``(model, document)`` from a model file or a ``fit.json``."""
+    doc = read_json_file(path)
+    if "model" not in doc:
         raise UserInputError(f"{path}: no 'model' entry; expected a model file or a fit.json")
     return model_from_dict(doc["model"], where=f"{path}: model"), doc
 
