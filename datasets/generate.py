@@ -15,7 +15,6 @@ Sensor: a 16-bit laser displacement sensor over a 0..10 mm measuring range
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 

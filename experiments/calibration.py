@@ -19,7 +19,6 @@ replicates should be near nominal (target: 80-98 % for 90 %).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 import warnings

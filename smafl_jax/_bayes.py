@@ -25,7 +25,6 @@ Linear gains (``linear=``):
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 import shutil

@@ -16,7 +16,6 @@ not on ``k2``.  ``k2`` only has meaning for the Joule model fitted alone
 from __future__ import annotations
 
 import equinox as eqx
-import jax.numpy as jnp
 
 from . import _config  # noqa: F401
 from ._eupi import EUPI

@@ -19,7 +19,7 @@ one CPU, several forced host devices, or several GPUs.
 from __future__ import annotations
 
 import functools
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import equinox as eqx
 import jax

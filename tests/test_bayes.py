@@ -17,7 +17,6 @@ import pytest
 from scipy import stats
 
 import smafl_jax as sj
-from smafl_jax import _bayes as B
 from tests.reference import thermal_loop
 
 ROOT = Path(__file__).resolve().parents[1]
