@@ -11,13 +11,23 @@ from . import _config  # noqa: F401
 __all__ = ["simulate", "simulate_batch"]
 
 
+def _checked(u, dt):
+    # Value checks that need the data: they run inside the compiled function
+    # (equinox.error_if), so a bad value in a jitted sweep is caught too.
+    u = eqx.error_if(u, ~jnp.all(jnp.isfinite(u)), "input record contains NaN or inf")
+    dt = eqx.error_if(dt, ~(dt > 0), "sample time dt must be > 0")
+    return u, dt
+
+
 @eqx.filter_jit
 def _simulate(model, u, dt):
+    u, dt = _checked(u, dt)
     return model.simulate(u, dt)
 
 
 @eqx.filter_jit
 def _simulate_batch(model, u, dt):
+    u, dt = _checked(u, dt)
     return jax.vmap(lambda x: model.simulate(x, dt))(u)
 
 

@@ -191,3 +191,20 @@ def test_plain_numbers_become_trainable_arrays():
     e = sj.EUPI.from_range(0.0, 7.4)
     e2 = type(e)(**{**{f: getattr(e, f) for f in e.__dataclass_fields__}, "offset": 1, "u_ref": 0})
     assert e2.offset.dtype == jnp.float64 and e2.u_ref.dtype == jnp.float64
+
+
+def test_simulate_value_checks_under_jit(rng):
+    """Values are checked inside the compiled function (equinox.error_if), not only at the Python level."""
+    import equinox as eqx
+
+    casc = sj.Cascade(thermal=sj.JouleThermal(), hysteresis=random_eupi(rng))
+    u = random_reversals(rng, 64)
+    bad = u.copy()
+    bad[10] = np.nan
+    with pytest.raises(eqx.EquinoxRuntimeError, match="NaN or inf"):
+        sj.simulate(casc, bad, 0.5)
+    with pytest.raises(eqx.EquinoxRuntimeError, match="dt must be > 0"):
+        sj.simulate(casc, u, -0.5)
+    with pytest.raises(eqx.EquinoxRuntimeError, match="NaN or inf"):
+        sj.simulate_batch(casc, np.stack([u, bad]), 0.5)
+    assert np.all(np.isfinite(np.asarray(sj.simulate(casc, u, 0.5))))
