@@ -116,8 +116,6 @@ def section_eupi(recs, out, quick):
     res = sj.fit(model0, train, max_steps=60 if quick else 300)
     m_tr = sj.metrics(train.y, sj.simulate(res.model, train.u, train.dt))
     m_va = sj.metrics(val.y, sj.simulate(res.model, val.u, val.dt))
-    lin = sj.init_linear(model0, train)  # the paper's own estimate: constrained LS only
-    m_lin = sj.metrics(train.y, sj.simulate(lin, train.u, train.dt))
     fig = _loop_figure(
         out / "fig09_10_eupi_loops.png",
         [
@@ -130,7 +128,6 @@ def section_eupi(recs, out, quick):
     return {
         "train": m_tr,
         "validation": m_va,
-        "linear_only_train": m_lin,
         "fit": {"converged": res.converged, "n_steps": res.n_steps, "message": res.message},
         "figures": [fig],
     }
