@@ -21,6 +21,16 @@ The model is linear in the weights: `fit_preisach` solves the bounded least
 squares with a Tikhonov (first differences of neighbouring grid weights) and
 ridge penalty, and reports the effective degrees of freedom ``trace(H)``.
 
+Ramp relays (``width`` > 0, the default of `Preisach.from_range`: one cell):
+a relay's thresholds are spread uniformly over ``width``, so its state is a
+fraction in ``[0, 1]``: ``r <- max(min(r, S((u - b) / width)), S((u - a) / width))``
+with ``S(x) = clip(x + 1/2, 0, 1)``.  The output is then continuous in the
+input (no staircase between levels; a crisp relay grid misses new data whose
+input falls between the training levels by up to one level's jump), keeps
+return-point memory, is still linear in the weights, and equals the crisp
+relay grid whenever the input sits on a cell edge (``width`` = cell width).
+``width = 0`` gives crisp relays.
+
 Initial state (``init``): ``"descended"`` (default) is the state after the
 input came down from above ``u_max`` to ``u(0)`` (relays with ``b < u(0)`` up,
 like the EUPI's default); ``"zero"`` starts every relay down (virgin state).
@@ -36,7 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
-from ._constraints import positive
+from ._constraints import as_float_array, positive
 from ._io import register_model
 
 __all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "cv_fit_preisach", "relay_loop"]
@@ -70,6 +80,8 @@ class Preisach(eqx.Module):
     levels: jnp.ndarray  # (n,) increasing relay thresholds
     u_ref: jnp.ndarray
     u_span: jnp.ndarray = positive()
+    # ramp width of every relay in input units; 0 = crisp relays (the default, so models saved before ramps load unchanged)
+    width: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)
     init: str = eqx.field(static=True, default="descended")
     linear: bool = eqx.field(static=True, default=False)
 
@@ -82,17 +94,26 @@ class Preisach(eqx.Module):
         m = nl[0] * (nl[0] + 1) // 2
         if np.shape(self.w) != (m,):
             raise ValueError(f"w must have shape (n(n+1)/2,) = ({m},) for {nl[0]} levels, got {np.shape(self.w)}")
+        if np.shape(self.width) != ():
+            raise ValueError(f"width must be a scalar, got shape {np.shape(self.width)}")
+        if not isinstance(self.width, jax.core.Tracer) and not float(self.width) >= 0.0:
+            raise ValueError(f"width must be >= 0 (0 = crisp relays), got {float(self.width)}")
 
     @classmethod
-    def from_range(cls, u_min, u_max, *, n_levels=24, linear=False, init="descended"):
-        """Untrained model with ``n_levels`` cell-centred levels over ``[u_min, u_max]`` (weights zero; fit them)."""
+    def from_range(cls, u_min, u_max, *, n_levels=24, linear=False, init="descended", ramp=True):
+        """Untrained model with ``n_levels`` cell-centred levels over ``[u_min, u_max]`` (weights zero; fit them).
+
+        ``ramp=True`` spreads each relay over its cell (``width`` = cell width):
+        continuous output, identical to crisp relays on inputs at cell edges.
+        """
         u_min, u_max = float(u_min), float(u_max)
         if not np.isfinite(u_min) or not np.isfinite(u_max) or u_max <= u_min:
             raise ValueError(f"input range must be finite with u_max > u_min, got [{u_min}, {u_max}]")
         lv = preisach_levels(u_min, u_max, n_levels)
         n = lv.size
         return cls(w=jnp.zeros(n * (n + 1) // 2), offset=jnp.asarray(0.0), gain=jnp.asarray(0.0), levels=jnp.asarray(lv),
-                   u_ref=jnp.asarray(u_min), u_span=jnp.asarray(u_max - u_min), init=init, linear=bool(linear))
+                   u_ref=jnp.asarray(u_min), u_span=jnp.asarray(u_max - u_min),
+                   width=jnp.asarray((u_max - u_min) / n if ramp else 0.0), init=init, linear=bool(linear))
 
     # -- structure -------------------------------------------------------
     @property
@@ -116,17 +137,19 @@ class Preisach(eqx.Module):
         u = jnp.asarray(u, dtype=jnp.float64)
         a, b = self.thresholds()
         r0 = jnp.ones_like(a) if self.init == "descended" else jnp.zeros_like(a)
+        width = self.width
 
         def step(r, uk):
-            # up wins on a tie (a == b relays are reversible steps: 1 iff u >= a)
-            r = jnp.where(uk >= a, 1.0, jnp.where(uk <= b, 0.0, r))
+            lo, hi = _switch_fractions(uk, a, b, width)
+            # up wins on a tie (crisp a == b relays are reversible steps: 1 iff u >= a)
+            r = jnp.maximum(jnp.minimum(r, hi), lo)
             return r, (r if weights is None else r @ weights)
 
         _, out = jax.lax.scan(step, r0, u)
         return out
 
     def relays(self, u):
-        """Relay states ``(T, n_relays)`` in {0, 1}."""
+        """Relay states ``(T, n_relays)`` in ``[0, 1]`` (in {0, 1} for crisp relays)."""
         return self._scan(u)
 
     def features(self, u):
@@ -165,16 +188,31 @@ class Preisach(eqx.Module):
         return y
 
 
-def relay_loop(u, a, b, init_up):
-    """Plain numpy reference of the relay bank (tests): states ``(T, n)``."""
+def _switch_fractions(u, a, b, width):
+    """Per relay at input ``u``: the fraction forced up (``lo``, by the up threshold) and allowed up (``hi``)."""
+    positive_width = width > 0
+    safe = jnp.where(positive_width, width, 1.0)  # no 0/0 in the untaken branch (its gradient would be NaN)
+    ramp = lambda t: jnp.clip((u - t) / safe + 0.5, 0.0, 1.0)  # noqa: E731
+    lo = jnp.where(positive_width, ramp(a), (u >= a).astype(u.dtype))
+    hi = jnp.where(positive_width, ramp(b), (u > b).astype(u.dtype))
+    return lo, hi
+
+
+def relay_loop(u, a, b, init_up, width=0.0):
+    """Plain numpy reference of the relay bank (tests): states ``(T, n)``; ``width > 0`` gives ramp relays."""
     r = np.ones(len(a)) if init_up else np.zeros(len(a))
     out = np.empty((len(u), len(a)))
     for k, uk in enumerate(u):
         for m in range(len(a)):
-            if uk >= a[m]:
-                r[m] = 1.0
-            elif uk <= b[m]:
-                r[m] = 0.0
+            if width == 0:
+                if uk >= a[m]:
+                    r[m] = 1.0
+                elif uk <= b[m]:
+                    r[m] = 0.0
+            else:
+                forced_up = min(max((uk - a[m]) / width + 0.5, 0.0), 1.0)
+                allowed_up = min(max((uk - b[m]) / width + 0.5, 0.0), 1.0)
+                r[m] = max(min(r[m], allowed_up), forced_up)
         out[k] = r
     return out
 
@@ -255,7 +293,7 @@ def fit_preisach(model, segments, *, lam=1e-2, ridge=0.0):
     fitted = model.with_linear_weights(jnp.asarray(x))
     res = A @ x - y
     return fitted, {"sse": float(res @ res), "n": int(A.shape[0]), "dof": dof, "lam": lam, "ridge": ridge,
-                    "n_levels": model.n_levels, "n_nonzero": int(np.sum(x[: model.n_relays] > 0))}
+                    "n_levels": model.n_levels, "width": float(model.width), "n_nonzero": int(np.sum(x[: model.n_relays] > 0))}
 
 
 #: Default inner-CV grids: levels per input range and penalty per sample.
@@ -270,7 +308,7 @@ def _as_seg(seg):
 
 
 def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_grid=LAM_GRID, ridge=0.0, linear=False,
-                    init="descended", keep=None, verbose=False):
+                    init="descended", ramp=True, keep=None, verbose=False):
     """Preisach fit with ``(n_levels, lam)`` chosen by inner cross-validation on ``segments`` only.
 
     Inner folds: leave one segment out, except the segments in ``keep`` (default:
@@ -299,7 +337,7 @@ def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_
     table = []
     best = None
     for n in n_levels_grid:
-        m0 = Preisach.from_range(u_min, u_max, n_levels=n, linear=linear, init=init)
+        m0 = Preisach.from_range(u_min, u_max, n_levels=n, linear=linear, init=init, ramp=ramp)
         blocks = [design(m0, [s]) for s in segs]
         nonneg = m0.nonnegative_columns()
         P1 = penalty_matrix(m0, 1.0, ridge)
@@ -320,7 +358,7 @@ def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_
             if best is None or row["cv_rmse"] < best["cv_rmse"]:
                 best = row
     full = [_as_seg(s) for s in segments]
-    model, info = fit_preisach(Preisach.from_range(u_min, u_max, n_levels=best["n_levels"], linear=linear, init=init), full,
+    model, info = fit_preisach(Preisach.from_range(u_min, u_max, n_levels=best["n_levels"], linear=linear, init=init, ramp=ramp), full,
                                lam=best["lam"], ridge=ridge)
     info.update({"inner_cv": inner, "n_inner_folds": len(folds), "cv_table": table, "chosen": best})
     return model, info

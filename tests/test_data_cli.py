@@ -108,6 +108,20 @@ def test_cli_simulate_roundtrip(tmp_path, datasets_dir, capsys):
     assert "replacing existing" in capsys.readouterr().err
 
 
+def test_cli_simulate_scores_against_measured_column(tmp_path, datasets_dir, capsys):
+    out, mfile = tmp_path / "sim.csv", tmp_path / "m.json"
+    args = ["simulate", str(datasets_dir / "truth.json"), str(datasets_dir / "minor_loop.csv"), "--out", str(out)]
+    assert cli_main(args + ["--measured", "displacement_mm", "--metrics", str(mfile)]) == 0
+    sim = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert out.read_text().splitlines()[0].split(",") == ["time_s", "voltage_V", "output_model", "displacement_mm"]
+    m = json.loads(mfile.read_text())
+    err = sim[:, 3] - sim[:, 2]
+    assert m["rmse"] == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-6) and m["rmse"] < 0.005
+    assert m["e_r_percent"] == pytest.approx(np.max(np.abs(err)) / np.ptp(sim[:, 3]) * 100, rel=1e-6)
+    assert "against measured 'displacement_mm'" in capsys.readouterr().out
+    assert cli_main(args + ["--measured", "force_N"]) == 2
+
+
 def test_cli_user_errors_exit_2_without_traceback(tmp_path, datasets_dir):
     bad = write(tmp_path, good_csv().replace("0.4000,2.0,0.04", "0.4000,oops,0.04"))
     cmd = [sys.executable, "-m", "smafl_jax.cli", "simulate", str(datasets_dir / "truth.json"), str(bad), "--out", str(tmp_path / "o.csv")]

@@ -8,8 +8,8 @@ import smafl_jax as sj
 from smafl_jax._preisach import Preisach, cv_fit_preisach, fit_preisach, relay_loop, tikhonov_matrix
 
 
-def _random_model(rng, n=7, linear=False, init="descended"):
-    m = Preisach.from_range(0.0, 3.5, n_levels=n, linear=linear, init=init)
+def _random_model(rng, n=7, linear=False, init="descended", ramp=True):
+    m = Preisach.from_range(0.0, 3.5, n_levels=n, linear=linear, init=init, ramp=ramp)
     theta = np.concatenate([rng.uniform(0.0, 1.0, m.n_relays), [0.7] if linear else [], [0.3]])
     return m.with_linear_weights(jnp.asarray(theta))
 
@@ -23,12 +23,16 @@ def _forc_input(alphas, u_max=3.5, step=0.1):
     return segs
 
 
+@pytest.mark.parametrize("ramp", [True, False])
 @pytest.mark.parametrize("init", ["descended", "zero"])
-def test_scan_matches_numpy_loop(rng, init):
-    m = _random_model(rng, linear=True, init=init)
+def test_scan_matches_numpy_loop(rng, init, ramp):
+    m = _random_model(rng, linear=True, init=init, ramp=ramp)
     u = np.concatenate([[1.7], rng.uniform(-0.2, 3.7, 300)])  # starts mid-range: the two inits differ
     a, b = (np.asarray(x) for x in m.thresholds())
-    R = relay_loop(u, a, b, init_up=(init == "descended"))
+    R = relay_loop(u, a, b, init_up=(init == "descended"), width=float(m.width))
+    assert (float(m.width) > 0) == ramp
+    if ramp:  # the input visits the inside of the ramps, so fractional states are exercised
+        assert np.any((R > 0.01) & (R < 0.99))
     np.testing.assert_allclose(np.asarray(m.relays(u)), R, atol=1e-12)
     s = (u - float(m.u_ref)) / float(m.u_span)
     ref = R @ np.asarray(m.w) + float(m.gain) * s + float(m.offset)
@@ -62,16 +66,48 @@ def test_return_point_and_wiping_out_memory(rng):
     assert abs(y[up[0]] - y[down[0]]) > 1e-3
     # exceeding the previous maximum (3.3 > 3.0) wipes out all history: same state as a virgin model raised to 3.3
     k = knot(7)
-    virgin = Preisach(w=m.w, offset=m.offset, gain=m.gain, levels=m.levels, u_ref=m.u_ref, u_span=m.u_span, init="zero")
+    virgin = Preisach(w=m.w, offset=m.offset, gain=m.gain, levels=m.levels, u_ref=m.u_ref, u_span=m.u_span, width=m.width, init="zero")
     fresh = np.asarray(virgin.relays(np.array([0.0, 3.3])))[-1]
     np.testing.assert_array_equal(R[k], fresh)
+
+
+def test_ramp_relays_equal_crisp_on_cell_edges_and_are_continuous(rng):
+    ramp = _random_model(rng, n=10)
+    crisp = Preisach(**{f: getattr(ramp, f) for f in ("w", "offset", "gain", "levels", "u_ref", "u_span")}, width=0.0)
+    h = float(ramp.width)
+    np.testing.assert_allclose(h, 3.5 / 10)
+    # a path of random reversals on the cell edges (u = k h): ramp and crisp relays agree exactly
+    edges = h * rng.integers(0, 11, 60).astype(float)
+    u = np.concatenate([np.linspace(edges[i], edges[i + 1], 1 + int(round(abs(edges[i + 1] - edges[i]) / h)))
+                        for i in range(len(edges) - 1)])
+    np.testing.assert_allclose(np.asarray(ramp.simulate(u)), np.asarray(crisp.simulate(u)), atol=1e-12)
+    # between the edges the crisp grid jumps by whole relay weights; the ramp grid moves by at most slope x step
+    fine = np.concatenate([np.linspace(0.0, 3.5, 3501), np.linspace(3.5, 0.9, 2601), np.linspace(0.9, 2.7, 1801)])
+    yr, yc = (np.abs(np.diff(np.asarray(m.simulate(fine)))) for m in (ramp, crisp))
+    max_relay = float(np.max(ramp.w))
+    assert yc.max() > 0.5 * max_relay  # the staircase
+    assert yr.max() < 0.05 * yc.max()
+
+
+def test_ramp_relays_predict_between_training_levels(rng):
+    """New reversal points and input steps off the training grid: crisp relays miss by a staircase, ramps interpolate."""
+    truth = _smooth_truth(n=70)  # the 'rig': a fine smooth density
+    train = _forc_input([3.1, 3.0, 2.9, 2.8, 2.7, 2.6, 2.5, 2.4, 2.3, 2.2, 2.0, 1.8, 1.5], step=0.1)
+    segs = [(u, np.asarray(truth.simulate(u)) + 0.01 * rng.standard_normal(u.size)) for u in train]
+    test = _forc_input([3.05, 2.75, 2.45, 2.15], step=0.05)  # reversal points and steps between the training levels
+    errs = {}
+    for ramp in (True, False):
+        fitted, _ = fit_preisach(Preisach.from_range(0.0, 3.5, n_levels=35, ramp=ramp), segs, lam=1e-3)
+        e = np.concatenate([np.asarray(fitted.simulate(u)) - np.asarray(truth.simulate(u)) for u in test])
+        errs[ramp] = np.max(np.abs(e))
+    assert errs[True] < 0.5 * errs[False]
 
 
 def test_json_round_trip(tmp_path, rng):
     m = _random_model(rng, linear=True, init="zero")
     sj.save_model(tmp_path / "p.json", m)
     back = sj.load_model(tmp_path / "p.json")
-    assert isinstance(back, Preisach) and back.init == "zero" and back.linear
+    assert isinstance(back, Preisach) and back.init == "zero" and back.linear and float(back.width) == float(m.width) > 0
     u = rng.uniform(0, 3.5, 50)
     np.testing.assert_allclose(np.asarray(back.simulate(u)), np.asarray(m.simulate(u)), atol=1e-14)
 
@@ -84,6 +120,8 @@ def test_bad_inputs():
     m = Preisach.from_range(0.0, 1.0, n_levels=4)
     with pytest.raises(ValueError, match="expected 11 linear weights"):
         m.with_linear_weights(jnp.zeros(3))
+    with pytest.raises(ValueError, match="width must be >= 0"):
+        Preisach(w=m.w, offset=m.offset, gain=m.gain, levels=m.levels, u_ref=m.u_ref, u_span=m.u_span, width=-0.1)
     with pytest.raises(ValueError, match="n\\(n\\+1\\)/2"):
         Preisach(w=jnp.zeros(5), offset=m.offset, gain=m.gain, levels=m.levels, u_ref=m.u_ref, u_span=m.u_span)
 
