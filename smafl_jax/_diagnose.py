@@ -70,7 +70,7 @@ from ._effects import (
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._metrics import metrics
-from ._preisach import Preisach, cv_fit_preisach
+from ._preisach import Preisach, cv_fit_preisach, fit_preisach
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
 from ._thermal import JouleThermal
 
@@ -321,7 +321,9 @@ _NONLINEAR = {
     "nonlinear_cooling": [("gamma", "log", 0.5)],
     "input_warp": [("c", "lin", 0.1), ("b", "log", 0.5)],
     "rate_dependence": [("c", "log", 0.5)],
-    "creep": [("g", "lin", 0.05), ("tau", "log", 0.5)],
+    # creep is bounded (see `Creep`): g = G_MAX tanh(p), log tau = logistic map onto the fitting range, so a fit
+    # cannot turn the relaxation into a huge-gain integrator (g -> -inf, tau >> record: a ramp)
+    "creep": [("g", "tanh", 0.05), ("tau", "logbox", 0.5)],
     "output_saturation": [("m", "lin", "y"), ("w", "log", 0.2)],
     "load_dependence": [("a", "lin", 0.05)],
 }
@@ -333,27 +335,69 @@ def _phi_layout(model, ctx):
         lay.append((None, "k1", "log", 0.5))
     for e in model.effects:
         for field, kind, step in _NONLINEAR[e.name]:
+            if kind == "logbox":  # bounded positive parameter: (kind, log lower, log upper)
+                kind = ("logbox", *np.log(_bounds(e.name, field, ctx)))
             lay.append((e.name, field, kind, 0.05 * ctx["y_range"] if step == "y" else step))
     return lay
+
+
+def _bounds(name, field, ctx):
+    """Fitting range of a bounded positive nonlinear parameter."""
+    if (name, field) == ("creep", "tau"):
+        return Creep.tau_bounds(ctx["dt"], ctx["duration"])
+    raise KeyError((name, field))
+
+
+def _to_phi(v, kind):
+    if kind == "log":
+        return np.log(max(v, 1e-12))
+    if kind == "tanh":  # creep g: |g| <= G_MAX
+        return float(np.arctanh(np.clip(v / Creep.G_MAX, -1.0 + 1e-9, 1.0 - 1e-9)))
+    if isinstance(kind, tuple):  # ("logbox", log lo, log hi)
+        _, llo, lhi = kind
+        f = np.clip((np.log(max(v, 1e-300)) - llo) / (lhi - llo), 1e-6, 1.0 - 1e-6)
+        return float(np.log(f / (1.0 - f)))
+    return v
+
+
+def _from_phi(p, kind):
+    if kind == "log":
+        return float(np.exp(np.clip(p, -30, 30)))
+    if kind == "tanh":
+        return float(Creep.G_MAX * np.tanh(p))
+    if isinstance(kind, tuple):
+        _, llo, lhi = kind
+        return float(np.exp(llo + (lhi - llo) / (1.0 + np.exp(-np.clip(p, -50, 50)))))
+    return float(p)
 
 
 def _get_phi(model, lay):
     out = []
     for name, field, kind, _ in lay:
         v = float(model.base.thermal.k1) if name is None else float(getattr(model.get(name), field))
-        out.append(np.log(max(v, 1e-12)) if kind == "log" else v)
+        out.append(_to_phi(v, kind))
     return np.array(out)
 
 
 def _set_phi(model, lay, phi):
     for (name, field, kind, _), p in zip(lay, phi):
-        v = jnp.asarray(float(np.exp(np.clip(p, -30, 30))) if kind == "log" else float(p))
+        v = jnp.asarray(_from_phi(p, kind))
         if name is None:
             model = eqx.tree_at(lambda m: m.base.thermal.k1, model, v)
         else:
             idx = [e.name for e in model.effects].index(name)
             model = eqx.tree_at(lambda m: getattr(m.effects[idx], field), model, v)
     return model
+
+
+def _creep_taus(ctx):
+    """Creep starting/probe time constants (30 s .. 1000 s) clipped inside the fitting range, duplicates dropped.
+
+    Kept a factor 2 off the bounds, where the logistic map of ``_NONLINEAR`` is flat and a simplex would stall.
+    """
+    lo, hi = Creep.tau_bounds(ctx["dt"], ctx["duration"])
+    lo, hi = min(2.0 * lo, np.sqrt(lo * hi)), max(0.5 * hi, np.sqrt(lo * hi))
+    return list(dict.fromkeys(float(np.clip(t, lo, hi)) for t in (30.0, 100.0, 300.0, 1000.0)))
 
 
 def _effect_grid(name, ctx):
@@ -378,7 +422,7 @@ def _effect_grid(name, ctx):
     if name == "rate_dependence":
         return [RateDependence(c=a(c)) for c in (0.1, 0.5, 2.0)]
     if name == "creep":
-        return [Creep(g=a(g), tau=a(t)) for g in (-0.1, 0.1, 0.3) for t in (30.0, 100.0, 300.0, 1000.0)]
+        return [Creep(g=a(g), tau=a(t)) for g in (-0.1, 0.1, 0.3) for t in _creep_taus(ctx)]
     if name == "output_saturation":
         return [OutputSaturation(m=a(ym + dm * yr), w=a(f * yr / 2)) for dm in (-0.1, 0.0, 0.1) for f in (1.02, 1.2, 2.0)]
     if name == "load_dependence":
@@ -396,7 +440,9 @@ def _probe(name, ctx):
         # a weak lag equals a weak delay to first order (x - tau dx/dt); longer lags carry the smoothing signature
         return [SensorLag(tau=a(ctx["dt"] * f)) for f in (1.0, 8.0, 32.0)]
     if name == "ambient_drift":
-        return [AmbientDrift(drift=a(0.01))]
+        # both signs: the thermal state is rectified at zero (u_eff = sqrt(max(q, 0))), so a falling ambient does
+        # nothing while the actuator rests and a rising one acts mostly then: the signatures are not mirror images
+        return [AmbientDrift(drift=a(d)) for d in (0.01, -0.01)]
     if name == "resistance_tc":
         return [ResistanceTC(beta=a(0.05))]
     if name == "asymmetric_cooling":
@@ -408,7 +454,7 @@ def _probe(name, ctx):
     if name == "rate_dependence":
         return [RateDependence(c=a(0.05))]
     if name == "creep":
-        return [Creep(g=a(0.05), tau=a(t)) for t in (30.0, 100.0, 300.0, 1000.0)]
+        return [Creep(g=a(0.05), tau=a(t)) for t in _creep_taus(ctx)]
     if name == "output_saturation":
         return [OutputSaturation(m=a(lo + f * yr), w=a(3.0 * yr)) for f in (0.25, 0.5, 0.75)]
     if name == "load_dependence":
@@ -437,6 +483,7 @@ def applicable_effects(base, split, rate_free):
 def _context(split):
     y = np.concatenate([s.y[s.mask] for s in split.train])
     ctx = {"dt": float(split.train[0].dt), "y_lo": float(y.min()), "y_range": float(np.ptp(y)) or 1.0, "y_mid": float(0.5 * (y.min() + y.max()))}
+    ctx["duration"] = max(len(s.u) for s in split.train) * ctx["dt"]  # longest training stretch (creep tau bound)
     if split.train[0].load is not None:
         ld = np.concatenate([s.load for s in split.train])
         ctx["load_ref"] = float(np.mean(ld))
@@ -585,8 +632,15 @@ def _metrics_pair(model, split):
     return tr, te
 
 
-def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effects=2, p_threshold=0.01, holdout_residue=2, verbose=True):
-    """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``."""
+def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effects=2, p_threshold=0.01, holdout_residue=2, refit=True,
+             verbose=True):
+    """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
+
+    The returned models are fitted on the training part of the split (the
+    held-out figures are theirs).  With ``refit`` the selected structure is
+    also refitted on the whole record (`refit_whole_record`): ``result["deployed"]``
+    and, for `write_diagnosis`, ``result["_deployed_models"]``.
+    """
     if record.y is None:
         raise UserInputError("diagnose needs an output column")
     t_start = time.time()
@@ -700,11 +754,16 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
     }
     result["_residual_arrays"] = {"base_train": res_tr, "base_heldout": res_te, "ext_train": ext_res_tr, "ext_heldout": ext_res_te}
     unwrapped = chosen if selected else base.base
+    if refit:
+        base_all, ext_all, info = refit_whole_record(record, base.base, unwrapped, result, verbose)
+        result["deployed"] = info
+        result["_deployed_models"] = (base_all, ext_all)
     return result, base.base, unwrapped, split
 
 
 def _preisach_params(info):
-    return {"n_levels": info["n_levels"], "lam": info["lam"], "effective_dof": info["dof"], "n_nonzero_weights": info["n_nonzero"]}
+    return {"n_levels": info["n_levels"], "lam": info["lam"], "relay_width": info.get("width", 0.0), "effective_dof": info["dof"],
+            "n_nonzero_weights": info["n_nonzero"]}
 
 
 def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
@@ -727,6 +786,56 @@ def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
              "fit": {"inner_cv": info["inner_cv"], "cv_table": info["cv_table"], "seconds": time.time() - t0}}
     entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
     return entry, (pm, te["rmse"], ic, info)
+
+
+def whole_record_split(record):
+    """Every sample of ``record`` as training data (branch records: one segment per branch)."""
+    lc = load_column(record)
+    if "branch" in record.extra:
+        b = np.asarray(record.extra["branch"]).astype(int)
+        labels = list(dict.fromkeys(b.tolist()))
+        segs = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels]
+    else:
+        labels = [f"0..{len(record) - 1}"]
+        segs = [_segment(record, np.arange(len(record)), load_col=lc)]
+    return Split("all", "every sample (training and held-out parts together)", segs, [], labels, [])
+
+
+def refit_whole_record(record, base, ext, result, verbose=True):
+    """Deployed models: the base and the selected structure refitted on every sample of the record.
+
+    Model structure and hyperparameters (effects, Preisach grid and penalty)
+    stay as chosen on the split; only the fitted values move (effect parameters
+    start from their split fit).  The held-out figures of the diagnosis remain
+    those of the split fit: they estimate how the deployed model predicts new
+    data, which it can only do better with the held-out part added.  Returns
+    ``(base_all, ext_all, info)``.
+    """
+    t0 = time.time()
+    full = whole_record_split(record)
+    base_all = fit_extended(base if isinstance(base, ExtendedModel) else ExtendedModel(base, ()), [], full)[0].base
+    if isinstance(ext, Preisach):
+        p = result["extended"]["parameters"][NONLOCAL_MEMORY["name"]]
+        u = np.asarray(record.u, float)
+        m0 = Preisach.from_range(float(u.min()), float(u.max()), n_levels=p["n_levels"], linear=ext.linear, init=ext.init,
+                                 ramp=bool(float(ext.width) > 0))
+        ext_all = fit_preisach(m0, full.train, lam=p["lam"])[0]
+    elif not result["selected"]:
+        ext_all = base_all
+    else:
+        ext_all = fit_extended(ext, list(ext.effect_names), full)[0]
+    wrap = lambda m: ExtendedModel(m, ()) if isinstance(m, (EUPI, Cascade)) else m  # noqa: E731
+    info = {"fitted_on": full.rule, "segments": full.train_labels, "n_samples": int(sum(s.mask.sum() for s in full.train)),
+            "base_rmse_all": score(wrap(base_all), full.train)[0]["rmse"], "extended_rmse_all": score(wrap(ext_all), full.train)[0]["rmse"],
+            "extended_parameters": (_effect_params_all(ext_all, result["selected"]) if isinstance(ext_all, ExtendedModel) else {}),
+            "seconds": time.time() - t0}
+    _log(f"refit on the whole record: base RMSE {info['base_rmse_all']:.4g}, extended RMSE {info['extended_rmse_all']:.4g} "
+         f"({info['seconds']:.1f} s)", verbose)
+    return base_all, ext_all, info
+
+
+def _effect_params_all(model, names):
+    return {n: _effect_params(model.get(n)) for n in names}
 
 
 def resid_after(model, split, resid):
@@ -765,7 +874,7 @@ SYNTHETIC_STRENGTH = {
     "nonlinear_cooling": "gamma ~ U(0.2, 0.6)",
     "input_warp": "c ~ U(0.4, 0.6), b ~ U(0.1, 0.2) (normalised effective voltage)",
     "rate_dependence": "c ~ U(0.5, 1.5)",
-    "creep": "g ~ U(0.08, 0.2), tau ~ U(100, 400) s",
+    "creep": "g ~ +-U(0.08, 0.2) (creep or recovery from an overshoot), tau ~ U(100, 400) s",
     "output_saturation": "m = output mid-level, w = half output range x U(0.9, 1.3)",
     "load_dependence": "load: piecewise-constant steps in [1, 3] every 150-400 s; a ~ +-U(0.05, 0.15), b ~ +-U(0.05, 0.15) mm",
 }
@@ -806,7 +915,7 @@ def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.0
     elif effect == "rate_dependence":
         eff = RateDependence(c=a(rng.uniform(0.5, 1.5)))
     elif effect == "creep":
-        eff = Creep(g=a(rng.uniform(0.08, 0.2)), tau=a(rng.uniform(100, 400)))
+        eff = Creep(g=a(sign * rng.uniform(0.08, 0.2)), tau=a(rng.uniform(100, 400)))
     elif effect == "output_saturation":
         eff = OutputSaturation(m=a(0.5 * (lo + hi)), w=a(0.5 * (hi - lo) * rng.uniform(0.9, 1.3)))
     elif effect == "load_dependence":

@@ -171,14 +171,29 @@ class RateDependence(Effect):
 
 @register_model
 class Creep(Effect):
-    """Slow viscoelastic relaxation (creep) of the polymer."""
+    """Slow viscoelastic relaxation (creep) of the polymer; a bounded fraction of the output relaxes."""
 
     name: ClassVar[str] = "creep"
     needs: ClassVar[tuple] = ("time",)
-    physics: ClassVar[str] = "A fraction g of the output follows the hysteresis output through a slow first-order lag (time constant tau, seconds to minutes): after a step the output keeps relaxing while the input is held."
-    parameters: ClassVar[dict] = {"g": "fraction of the output that creeps (signed)", "tau": "creep time constant in seconds (> 0)"}
+    physics: ClassVar[str] = (
+        "A fraction g of the output follows the hysteresis output H through a slow first-order lag L (time constant tau, "
+        "seconds to minutes): y = (1 - g) H + g L[H]. After a step the output keeps relaxing while the input is held: "
+        "towards the step (g > 0, creep) or back from an overshoot (g < 0, recovery). A relaxation is bounded: |g| <= 1 "
+        "(at most the whole step creeps or overshoots) and tau lies between a few samples and the record length (a longer "
+        "tau cannot be told from a ramp, which is ambient_drift); the diagnosis fits within these bounds.")
+    parameters: ClassVar[dict] = {"g": "fraction of the output that creeps, signed, |g| <= G_MAX = 1",
+                                  "tau": "creep time constant in seconds, fitted within [TAU_MIN_SAMPLES dt, record length]"}
+    #: Bounds used when fitting (models saved with values outside them still load and run unchanged).
+    G_MAX: ClassVar[float] = 1.0
+    TAU_MIN_SAMPLES: ClassVar[float] = 2.0
     g: jnp.ndarray
     tau: jnp.ndarray = positive()
+
+    @classmethod
+    def tau_bounds(cls, dt, duration):
+        """Fitting range of ``tau`` (s): a few samples up to the (training) record length."""
+        lo = cls.TAU_MIN_SAMPLES * float(dt)
+        return lo, max(float(duration), 2.0 * lo)
 
 
 @register_model

@@ -19,10 +19,17 @@ def versions():
     return {"smafl_jax": __version__, "jax": jax.__version__, "equinox": equinox.__version__, "numpy": np.__version__, "scipy": scipy.__version__}
 
 
-def _fit_doc(rec, res, which):
+def _fit_doc(rec, res, which, deployed=False):
     part = res["base"] if which == "base" else res["extended"]
+    extra = {}
+    if deployed:
+        # the deployed model has no held-out data left: its validation figures are those of the same structure fitted on the split
+        extra = {"refit": {"fitted_on": res["deployed"]["fitted_on"], "segments": res["deployed"]["segments"],
+                           "rmse_all_samples": res["deployed"][f"{'base' if which == 'base' else 'extended'}_rmse_all"],
+                           "validation_metrics_from": f"{which}_fit_train.json (same structure fitted on the training split only)"}}
     return {
         "metrics": {"train": part["train"], "validation": part["heldout"]},
+        **extra,
         "data": {"file": rec.name + ".csv" if rec.path else rec.name, "path": rec.path, "sha256": rec.sha256, "input_column": rec.input_name,
                  "output_column": rec.output_name, "sample_time_s": rec.dt, "n_samples": len(rec)},
         "settings": {"command": "diagnose", "split": res["split"], "effects": part.get("effects", []), "base_rule": res["base"]["rule"]},
@@ -103,7 +110,13 @@ def _report_md(rec, res):
     s = res.get("strongest_remaining_correlate")
     if s:
         L += ["", f"Strongest remaining held-out residual correlate: `{s['signal']}` (corr {s['corr']:+.3f}, p {s['p_value']:.2g})."]
-    L += ["", "Plots: `residuals_before.png` (base model), `residuals_after.png` (extended model).", ""]
+    d = res.get("deployed")
+    if d:
+        L += ["", f"Deployed models (`base_fit.json`, `extended_fit.json`): the same structures refitted on {d['fitted_on']} "
+                  f"({d['n_samples']} samples; RMSE on them: base {d['base_rmse_all']:.4g}, extended {d['extended_rmse_all']:.4g}). "
+                  "Use them to predict new data; the held-out figures above are those of the split fits "
+                  "(`base_fit_train.json`, `extended_fit_train.json`)."]
+    L += ["", "Plots: `residuals_before.png` (base model), `residuals_after.png` (extended model), both the split fits.", ""]
     return "\n".join(L)
 
 
@@ -113,9 +126,17 @@ def write_diagnosis(out, rec, res, base, ext, split):
     from ._effects import ExtendedModel
 
     arrays = res.pop("_residual_arrays", None)
+    deployed = res.pop("_deployed_models", None)
     atomic_write_json(out / "diagnosis.json", to_jsonable(res))
-    save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
-    save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
+    if deployed is None:  # diagnose(refit=False): the split fits are the outputs
+        save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
+        save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
+    else:
+        # *_fit.json: refitted on the whole record, for predicting new data; *_fit_train.json: the split fits that were scored
+        save_model(out / "base_fit.json", deployed[0], **_fit_doc(rec, res, "base", deployed=True))
+        save_model(out / "extended_fit.json", deployed[1], **_fit_doc(rec, res, "extended", deployed=True))
+        save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base"))
+        save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
     # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
     wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m  # noqa: E731
     _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model")
@@ -123,3 +144,5 @@ def write_diagnosis(out, rec, res, base, ext, split):
     atomic_write_text(out / "report.md", _report_md(rec, res))
     if arrays is not None:
         res["_residual_arrays"] = arrays
+    if deployed is not None:
+        res["_deployed_models"] = deployed
