@@ -83,21 +83,32 @@ def lobo(rec, u_min, u_max, verbose=True):
         p = np.asarray(pm.simulate(segs[i].u))
         e = np.abs(segs[i].y - p)
         per.append({"branch": lab, "max_abs_error": float(e.max()), "at_input": float(segs[i].u[int(np.argmax(e))]),
-                    "n_levels": info["n_levels"], "lam": info["lam"]})
+                    "n_levels": info["n_levels"], "lam": info["lam"], "method": info["method"]})
         if verbose:
             print(f"  LOBO branch {lab}: max |error| {e.max():.3f} at {segs[i].u[int(np.argmax(e))]:.2f} "
-                  f"(n_levels {info['n_levels']}, lam {info['lam']:.0e})", file=sys.stderr, flush=True)
+                  f"(n_levels {info['n_levels']}, {info['method']}, lam {info['lam']})", file=sys.stderr, flush=True)
         ys.append(segs[i].y)
         yh.append(p)
     m = metrics(np.concatenate(ys), np.concatenate(yh))
-    return {"pooled": m, "branches": per}
+    out = {"pooled": m, "branches": per, "fixed_everett_35": {}}
+    from smafl_jax._preisach import EVERETT_INTERPOLANTS, Preisach, fit_everett
+
+    for interp in EVERETT_INTERPOLANTS:  # for reference: one fixed identification, no inner choice
+        ys2, yh2 = [], []
+        for i, lab in enumerate(labels):
+            if lab != 0:
+                pe, _ = fit_everett(Preisach.from_range(u_min, u_max, n_levels=35), [s for j, s in enumerate(segs) if j != i], interp)
+                ys2.append(segs[i].y)
+                yh2.append(np.asarray(pe.simulate(segs[i].u)))
+        out["fixed_everett_35"][interp] = metrics(np.concatenate(ys2), np.concatenate(yh2))
+    return out
 
 
 def main(argv=None):
     from smafl_jax import atomic_write_json, load_record, metrics
     from smafl_jax._diagnose import _metrics_pair, choose_base, fit_extended, make_split, n_parameters
     from smafl_jax._effects import ExtendedModel
-    from smafl_jax._preisach import LAM_GRID, N_LEVELS_GRID, cv_fit_preisach
+    from smafl_jax._preisach import EVERETT_INTERPOLANTS, LAM_GRID, N_LEVELS_GRID, Preisach, cv_fit_preisach, fit_everett
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
@@ -122,7 +133,7 @@ def main(argv=None):
         pm, info = cv_fit_preisach(split.train, u_min, u_max, verbose=True)
         te = _heldout(pm, split)
         row["models"]["preisach"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
-                                     "n_levels": info["n_levels"], "lam": info["lam"], "n_weights_nominal": pm.n_relays + 1,
+                                     "n_levels": info["n_levels"], "lam": info["lam"], "method": info["method"], "n_weights_nominal": pm.n_relays + 1,
                                      "n_nonzero_weights": info["n_nonzero"], "effective_dof": info["dof"],
                                      "train_rmse": float(np.sqrt(info["sse"] / info["n"])), "inner_cv": info["inner_cv"],
                                      "inner_cv_rmse": info["chosen"]["cv_rmse"], "cv_table": info["cv_table"]}
@@ -130,6 +141,12 @@ def main(argv=None):
         te = _heldout(pc, split)
         row["models"]["preisach_crisp"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
                                            "n_levels": info_c["n_levels"], "lam": info_c["lam"]}
+        for interp in EVERETT_INTERPOLANTS:  # fixed choices, shown for reference (the inner CV above may pick one of them)
+            pe, _ = fit_everett(Preisach.from_range(u_min, u_max, n_levels=35), split.train, interp)
+            te = _heldout(pe, split)
+            row["models"][f"everett_{interp}_35"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
+                                                     "inner_cv_rmse": next(r["cv_rmse"] for r in info["cv_table"]
+                                                                           if r["method"] == f"everett-{interp}" and r["n_levels"] == 35)}
         y = np.concatenate([s.y for s in split.test])
         yi = np.concatenate([neighbour_interpolation(split.train, s) for s in split.test])
         te = metrics(y, yi)
@@ -145,19 +162,23 @@ def main(argv=None):
         doc["lobo"] = lobo(rec, u_min, u_max)
     atomic_write_json(a.out, doc)
     print("| held out | EUPI e_r / RMSE | EUPI+sat e_r / RMSE | Preisach e_r / RMSE | Preisach n_levels, lam | Preisach dof (nonzero / nominal) | EUPI+sat params "
-          "| crisp Preisach e_r | neighbour interpolation e_r |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| crisp Preisach e_r | neighbour interpolation e_r | Everett spline / pchip / linear e_r (inner-CV RMSE) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         e, s, p = (row["models"][k] for k in ("eupi", "eupi+output_saturation", "preisach"))
         print(f"| {row['holdout_residue']}: {row['heldout_branches']} | {e['heldout_e_r']:.2f} / {e['heldout_rmse']:.4f} | "
               f"{s['heldout_e_r']:.2f} / {s['heldout_rmse']:.4f} | {p['heldout_e_r']:.2f} / {p['heldout_rmse']:.4f} | "
-              f"{p['n_levels']}, {p['lam']:.0e} | {p['effective_dof']:.1f} ({p['n_nonzero_weights']} / {p['n_weights_nominal']}) | {s['n_parameters']} "
-              f"| {row['models']['preisach_crisp']['heldout_e_r']:.2f} | {row['models']['neighbour_interpolation']['heldout_e_r']:.2f} |")
+              f"{p['n_levels']}, {p['method'] if p['lam'] is None else format(p['lam'], '.0e')} | {p['effective_dof']:.1f} ({p['n_nonzero_weights']} / {p['n_weights_nominal']}) | {s['n_parameters']} "
+              f"| {row['models']['preisach_crisp']['heldout_e_r']:.2f} | {row['models']['neighbour_interpolation']['heldout_e_r']:.2f} | "
+              + " / ".join(f"{row['models'][f'everett_{k}_35']['heldout_e_r']:.2f} ({row['models'][f'everett_{k}_35']['inner_cv_rmse']:.3f})"
+                           for k in ("spline", "pchip", "linear")) + " |")
     if a.lobo:
         lb = doc["lobo"]
         print(f"LOBO (every descending branch from all the others, nested inner CV): pooled e_r {lb['pooled']['e_r_percent']:.2f} %, "
               f"RMSE {lb['pooled']['rmse']:.4f}; worst: " + ", ".join(f"branch {r['branch']} {r['max_abs_error']:.3f} at {r['at_input']:.1f}"
                                                                        for r in sorted(lb['branches'], key=lambda r: -r['max_abs_error'])[:3]))
+        print("LOBO, fixed Everett identification on 35 levels (no inner choice): " + ", ".join(
+            f"{k} e_r {v['e_r_percent']:.2f} % (RMSE {v['rmse']:.4f})" for k, v in lb["fixed_everett_35"].items()))
 
 
 if __name__ == "__main__":

@@ -66,11 +66,12 @@ from ._effects import (
     RateDependence,
     ResistanceTC,
     SensorLag,
+    StrainAccumulation,
 )
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._metrics import metrics
-from ._preisach import Preisach, cv_fit_preisach, fit_preisach
+from ._preisach import Preisach, cv_fit_preisach
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
 from ._thermal import JouleThermal
 
@@ -201,6 +202,11 @@ def _features(model, u, dt):
     return model.features(u, dt)
 
 
+@eqx.filter_jit
+def _accumulation(model, u, dt):
+    return model.accumulation_column(u, dt)
+
+
 def simulate_segment(model, seg):
     load = None if seg.load is None else jnp.asarray(seg.load)
     return np.asarray(_sim(model, jnp.asarray(seg.u), jnp.asarray(seg.dt), load))
@@ -250,11 +256,14 @@ def _bvls(A, b, nonneg):
 
 
 def _design(model, segs):
-    """Stacked design matrix (EUPI gains [+ load offset]) and targets over the scored samples."""
+    """Stacked design matrix (EUPI gains [+ strain_accumulation c] [+ load offset]) and targets over the scored samples."""
     ld = model.get("load_dependence")
+    sa = model.get("strain_accumulation")
     rows, targets = [], []
     for s in segs:
         F = np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]
+        if sa is not None:  # c enters linearly, beside the gains (before the output map, as in `ExtendedModel.simulate`)
+            F = np.column_stack([F, np.asarray(_accumulation(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]])
         if ld is not None:
             l_ = (np.asarray(s.load)[s.mask] - float(ld.load_ref)) / float(ld.load_scale)
             F = np.column_stack([F * (1.0 + float(ld.a) * l_)[:, None], l_])
@@ -274,10 +283,13 @@ def profile_gains(model, segs, *, gn_steps=8):
     eupi = model.hysteresis
     sat = model.get("output_saturation")
     ld = model.get("load_dependence")
+    sa = model.get("strain_accumulation")
     A, y = _design(model, segs)
     if not np.all(np.isfinite(A)):
         return model, np.inf
     nonneg = eupi.nonnegative_columns()
+    if sa is not None:
+        nonneg = np.r_[nonneg, False]
     if ld is not None:
         nonneg = np.r_[nonneg, False]
     if sat is None:
@@ -301,6 +313,9 @@ def profile_gains(model, segs, *, gn_steps=8):
                 break
     if ld is not None:
         model = eqx.tree_at(lambda mm: mm.get("load_dependence").b, model, jnp.asarray(theta[-1]))
+        theta = theta[:-1]
+    if sa is not None:
+        model = eqx.tree_at(lambda mm: mm.get("strain_accumulation").c, model, jnp.asarray(theta[-1]))
         theta = theta[:-1]
     return model.with_hysteresis(eupi.with_linear_weights(jnp.asarray(theta))), sse
 
@@ -326,6 +341,8 @@ _NONLINEAR = {
     "creep": [("g", "tanh", 0.05), ("tau", "logbox", 0.5)],
     "output_saturation": [("m", "lin", "y"), ("w", "log", 0.2)],
     "load_dependence": [("a", "lin", 0.05)],
+    # c is linear (profiled with the gains): no nonlinear parameter
+    "strain_accumulation": [],
 }
 
 
@@ -427,6 +444,8 @@ def _effect_grid(name, ctx):
         return [OutputSaturation(m=a(ym + dm * yr), w=a(f * yr / 2)) for dm in (-0.1, 0.0, 0.1) for f in (1.02, 1.2, 2.0)]
     if name == "load_dependence":
         return [LoadDependence(a=a(x), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])) for x in (-0.2, 0.0, 0.2)]
+    if name == "strain_accumulation":
+        return [StrainAccumulation(c=a(0.0))]  # a single start: c is profiled with the gains
     raise UserInputError(f"unknown effect {name!r}; catalogue: {list(EFFECTS)}")
 
 
@@ -462,6 +481,8 @@ def _probe(name, ctx):
             LoadDependence(a=a(0.05), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])),
             LoadDependence(a=a(0.0), b=a(0.05 * yr), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])),
         ]
+    if name == "strain_accumulation":
+        return [StrainAccumulation(c=a(0.01 * yr))]
     raise UserInputError(f"unknown effect {name!r}")
 
 
@@ -762,8 +783,8 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
 
 
 def _preisach_params(info):
-    return {"n_levels": info["n_levels"], "lam": info["lam"], "relay_width": info.get("width", 0.0), "effective_dof": info["dof"],
-            "n_nonzero_weights": info["n_nonzero"]}
+    return {"method": info.get("method", "penalised"), "n_levels": info["n_levels"], "lam": info["lam"], "relay_width": info.get("width", 0.0),
+            "effective_dof": info["dof"], "n_nonzero_weights": info["n_nonzero"]}
 
 
 def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
@@ -773,7 +794,7 @@ def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
     pm, info = cv_fit_preisach(split.train, float(u.min()), float(u.max()))
     tr, te = _metrics_pair(pm, split)
     ic = information_criteria(pm, split.train, k=info["dof"])
-    _log(f"  fit nonlocal_memory (Preisach): n_levels {info['n_levels']}, lam {info['lam']:.0e}, dof {info['dof']:.1f}, "
+    _log(f"  fit nonlocal_memory (Preisach): n_levels {info['n_levels']}, {info['method']}, lam {info['lam']}, dof {info['dof']:.1f}, "
          f"held-out RMSE {te['rmse']:.4g}, {time.time() - t0:.1f} s", verbose)
     nan = float("nan")
     entry = {"name": NONLOCAL_MEMORY["name"], "base_replacement": True, "plausible": True, "fitted": True,
@@ -804,9 +825,10 @@ def whole_record_split(record):
 def refit_whole_record(record, base, ext, result, verbose=True):
     """Deployed models: the base and the selected structure refitted on every sample of the record.
 
-    Model structure and hyperparameters (effects, Preisach grid and penalty)
-    stay as chosen on the split; only the fitted values move (effect parameters
-    start from their split fit).  The held-out figures of the diagnosis remain
+    The structure (effects, or the Preisach replacement) stays as chosen on the
+    split; effect parameters restart from their split fit; the Preisach grid,
+    penalty or Everett interpolant is chosen again by its inner CV over all
+    segments.  The held-out figures of the diagnosis remain
     those of the split fit: they estimate how the deployed model predicts new
     data, which it can only do better with the held-out part added.  Returns
     ``(base_all, ext_all, info)``.
@@ -814,12 +836,14 @@ def refit_whole_record(record, base, ext, result, verbose=True):
     t0 = time.time()
     full = whole_record_split(record)
     base_all = fit_extended(base if isinstance(base, ExtendedModel) else ExtendedModel(base, ()), [], full)[0].base
+    preisach_cv = None
     if isinstance(ext, Preisach):
-        p = result["extended"]["parameters"][NONLOCAL_MEMORY["name"]]
+        # the grid and penalty are chosen again by the same inner CV, now over every branch: each inner fold then
+        # predicts a branch between two trained neighbours, the situation of a new branch from the same rig
         u = np.asarray(record.u, float)
-        m0 = Preisach.from_range(float(u.min()), float(u.max()), n_levels=p["n_levels"], linear=ext.linear, init=ext.init,
-                                 ramp=bool(float(ext.width) > 0))
-        ext_all = fit_preisach(m0, full.train, lam=p["lam"])[0]
+        ext_all, pinfo = cv_fit_preisach(full.train, float(u.min()), float(u.max()), linear=ext.linear, init=ext.init,
+                                         ramp=bool(float(ext.width) > 0))
+        preisach_cv = {**_preisach_params(pinfo), "inner_cv": pinfo["inner_cv"], "inner_cv_rmse": pinfo["chosen"]["cv_rmse"]}
     elif not result["selected"]:
         ext_all = base_all
     else:
@@ -827,7 +851,8 @@ def refit_whole_record(record, base, ext, result, verbose=True):
     wrap = lambda m: ExtendedModel(m, ()) if isinstance(m, (EUPI, Cascade)) else m  # noqa: E731
     info = {"fitted_on": full.rule, "segments": full.train_labels, "n_samples": int(sum(s.mask.sum() for s in full.train)),
             "base_rmse_all": score(wrap(base_all), full.train)[0]["rmse"], "extended_rmse_all": score(wrap(ext_all), full.train)[0]["rmse"],
-            "extended_parameters": (_effect_params_all(ext_all, result["selected"]) if isinstance(ext_all, ExtendedModel) else {}),
+            "extended_parameters": (_effect_params_all(ext_all, result["selected"]) if isinstance(ext_all, ExtendedModel) else
+                                    {NONLOCAL_MEMORY["name"]: preisach_cv} if preisach_cv else {}),
             "seconds": time.time() - t0}
     _log(f"refit on the whole record: base RMSE {info['base_rmse_all']:.4g}, extended RMSE {info['extended_rmse_all']:.4g} "
          f"({info['seconds']:.1f} s)", verbose)
@@ -877,6 +902,7 @@ SYNTHETIC_STRENGTH = {
     "creep": "g ~ +-U(0.08, 0.2) (creep or recovery from an overshoot), tau ~ U(100, 400) s",
     "output_saturation": "m = output mid-level, w = half output range x U(0.9, 1.3)",
     "load_dependence": "load: piecewise-constant steps in [1, 3] every 150-400 s; a ~ +-U(0.05, 0.15), b ~ +-U(0.05, 0.15) mm",
+    "strain_accumulation": "c ~ +-U(0.08, 0.25) mm per 1000 s at full drive (0.1-0.33 mm over the record)",
 }
 
 
@@ -928,6 +954,8 @@ def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.0
         extra["load_N"] = load
         eff = LoadDependence(a=a(sign * rng.uniform(0.05, 0.15)), b=a((1 if rng.random() < 0.5 else -1) * rng.uniform(0.05, 0.15)),
                              load_ref=a(float(load.mean())), load_scale=a(float(load.std())))
+    elif effect == "strain_accumulation":
+        eff = StrainAccumulation(c=a(sign * rng.uniform(0.08, 0.25)))
     else:
         raise UserInputError(f"unknown effect {effect!r}")
     true = ExtendedModel(truth, () if eff is None else (eff,))

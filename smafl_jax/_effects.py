@@ -7,7 +7,7 @@ loads and runs with ``smafl simulate`` like any other model.  The pipeline is
 
     u --delay--> --sensor_lag--> x --thermal (+ resistance_tc, asymmetric_cooling,
     nonlinear_cooling, ambient_drift)--> u_eff --input_warp--> --EUPI
-      (+ rate_dependence)--> H --creep--> --output_saturation-->
+      (+ rate_dependence)--> H --creep--> (+ strain_accumulation) --output_saturation-->
       --load_dependence--> y
 
 Thermal effects are written on the thermal state in *voltage-squared units*
@@ -68,6 +68,7 @@ __all__ = [
     "OutputSaturation",
     "InputWarp",
     "LoadDependence",
+    "StrainAccumulation",
     "effect_names",
     "warp_input",
     "fractional_delay",
@@ -77,6 +78,8 @@ __all__ = [
 DRIFT_TIME = 1000.0
 #: Rate scale (s): rate_dependence uses ``|ds/dt| * RATE_TIME`` (s normalised input).
 RATE_TIME = 100.0
+#: Time scale of strain_accumulation (s): ``c`` is the output change per 1000 s at full drive.
+ACCUMULATION_TIME = 1000.0
 
 
 class Effect(eqx.Module):
@@ -246,10 +249,27 @@ class LoadDependence(Effect):
     load_scale: jnp.ndarray
 
 
+@register_model
+class StrainAccumulation(Effect):
+    """Strain that accumulates while the wire is driven (hot/transformed) and stays (permanent, one parameter ``c``)."""
+
+    name: ClassVar[str] = "strain_accumulation"
+    needs: ClassVar[tuple] = ("time",)
+    physics: ClassVar[str] = (
+        "While the wire is hot (transformed, carrying the bias load) strain accumulates monotonically and stays after "
+        "cooling: transformation-induced plasticity, functional fatigue, ratcheting of the wire-spring system. Drive "
+        "phi = clip(s - s(0), 0, 1) (s the normalised hysteresis input, s(0) its rest level at the record start), "
+        "accumulated strain D(t) = -int_0^t phi dt / 1000 s, output y = H + c D(t). c = 0 is the base model. c enters "
+        "linearly (profiled with the EUPI gains), so the effect adds no nonlinear parameter. (A recoverable fraction was "
+        "tried and dropped: every fit scored on held-out water-step data put the permanent fraction on its bound 1.)")
+    parameters: ClassVar[dict] = {"c": "output change per 1000 s at full drive (phi = 1), output units, signed (c > 0: the output falls while hot)"}
+    c: jnp.ndarray
+
+
 EFFECTS = {
     cls.name: cls
     for cls in (Delay, SensorLag, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, InputWarp, RateDependence, Creep, OutputSaturation,
-                LoadDependence)
+                LoadDependence, StrainAccumulation)
 }
 EFFECT_NAMES = tuple(EFFECTS)
 
@@ -428,6 +448,14 @@ class ExtendedModel(eqx.Module):
             F = F + cr.g * (_lowpass(F, dt, cr.tau) - F)
         return F
 
+    def accumulation_column(self, u, dt):
+        """Output change per unit ``c`` of `StrainAccumulation`: the accumulated strain ``D(t)`` (see there)."""
+        dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
+        s = self.hysteresis.normalise(self.hysteresis_input(u, dt))
+        phi = jnp.clip(s - s[0], 0.0, 1.0)
+        # a plain integral (rectangle rule; phi(0) = 0, so D(0) = 0): a cumsum, no recurrence
+        return -jnp.cumsum(phi) * dt / ACCUMULATION_TIME
+
     def output_map(self, h, load=None):
         """Output-side effects (saturation, load) applied to the linear output ``h``."""
         sat = self.get("output_saturation")
@@ -440,7 +468,11 @@ class ExtendedModel(eqx.Module):
 
     def simulate(self, u, dt, load=None):
         """Output for drive ``u`` sampled every ``dt`` s (``load``: optional load signal)."""
-        return self.output_map(self.features(u, dt) @ self.hysteresis.linear_weights(), load)
+        h = self.features(u, dt) @ self.hysteresis.linear_weights()
+        sa = self.get("strain_accumulation")
+        if sa is not None:
+            h = h + sa.c * self.accumulation_column(u, dt)
+        return self.output_map(h, load)
 
 
 class LoadBound(eqx.Module):

@@ -49,7 +49,8 @@ from . import _config  # noqa: F401
 from ._constraints import as_float_array, positive
 from ._io import register_model
 
-__all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "cv_fit_preisach", "relay_loop"]
+__all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "cv_fit_preisach", "relay_loop", "everett_weights",
+           "fit_everett", "forc_shaped"]
 
 _INITS = ("descended", "zero")
 
@@ -296,6 +297,90 @@ def fit_preisach(model, segments, *, lam=1e-2, ridge=0.0):
                     "n_levels": model.n_levels, "width": float(model.width), "n_nonzero": int(np.sum(x[: model.n_relays] > 0))}
 
 
+#: Interpolants of the measured FORC surface in the reversal input (`everett_weights`).
+EVERETT_INTERPOLANTS = ("spline", "pchip", "linear")
+
+
+def forc_shaped(segments, rtol=1e-9):
+    """True if every segment rises monotonically to its maximum, then falls monotonically (first-order reversal curves)."""
+    for seg in segments:
+        u = np.asarray(_as_seg(seg)[0], float)
+        k = int(np.argmax(u))
+        tol = rtol * max(float(np.ptp(u)), 1e-300)
+        if u.size < 2 or np.any(np.diff(u[: k + 1]) < -tol) or np.any(np.diff(u[k:]) > tol):
+            return False
+    return len(segments) >= 2
+
+
+def everett_weights(segments, levels, interp="spline"):
+    """Relay weights and offset of the Preisach grid (cell-centred ``levels``) whose FORCs are the measured ones.
+
+    Classical FORC (Everett) identification: the surface ``F(a, b)``, the output
+    after rising to ``a`` and falling to ``b``, is read off the measured branches
+    (linear in ``b`` between samples), interpolated in the reversal input ``a``
+    (``interp``: natural cubic ``spline``, ``pchip`` or ``linear``; the rising
+    major branch gives the diagonal ``F(b, b)``) at the level-cell edges, and the
+    relay weights are its mixed second differences.  The grid then reproduces
+    every measured FORC at the cell edges; weights may be negative where the data
+    break the nonnegative-density (congruency-free) Preisach structure.
+    """
+    from scipy.interpolate import CubicSpline, PchipInterpolator
+
+    if interp not in EVERETT_INTERPOLANTS:
+        raise ValueError(f"interp must be one of {EVERETT_INTERPOLANTS}, got {interp!r}")
+    segs = [_as_seg(s) for s in segments]
+    if not forc_shaped(segs):
+        raise ValueError("Everett identification needs first-order reversal curves: each segment rising to its maximum, then falling")
+    lv = np.asarray(levels, float)
+    n = lv.size
+    h = (lv[-1] - lv[0]) / (n - 1) if n > 1 else 1.0
+    edges = np.concatenate([[lv[0] - h / 2], lv + h / 2])
+    mu, my, _ = max(segs, key=lambda sg: float(np.max(sg[0])))
+    k = int(np.argmax(mu))
+    rising = (np.asarray(mu, float)[: k + 1], np.asarray(my, float)[: k + 1])
+    forcs = []
+    for u, y, _ in segs:
+        u, y = np.asarray(u, float), np.asarray(y, float)
+        i = int(np.argmax(u))
+        forcs.append((float(u[i]), u[i:][::-1], y[i:][::-1]))
+    forcs.sort(key=lambda t: t[0])
+    F = np.zeros((n + 1, n + 1))  # F[p, q]: risen to edge p, fallen to edge q <= p
+    for q in range(n + 1):
+        b = edges[q]
+        xs, vs = [b], [float(np.interp(b, *rising))]
+        for a, du, dy in forcs:
+            if a > xs[-1] + 1e-9 * h:
+                xs.append(a)
+                vs.append(float(np.interp(b, du, dy)))
+        xs, vs = np.array(xs), np.array(vs)
+        at = np.minimum(edges[q:], xs[-1])  # above the largest reversal the top branch holds
+        if xs.size >= 3 and interp == "spline":
+            F[q:, q] = CubicSpline(xs, vs, bc_type="natural")(at)
+        elif xs.size >= 3 and interp == "pchip":
+            F[q:, q] = PchipInterpolator(xs, vs)(at)
+        else:
+            F[q:, q] = np.interp(at, xs, vs)
+    # relay (i, j) is up after rising to edge p and falling to edge q iff i < p and j < q: F = offset + cumulative sums
+    i, j = np.tril_indices(n)
+    Fi = lambda p, q: F[p, np.minimum(q, p)]  # noqa: E731  (falling to q >= p changes nothing)
+    w = Fi(i + 1, j + 1) - Fi(i + 1, j) - Fi(i, j + 1) + Fi(i, j)
+    return w, float(F[0, 0])
+
+
+def fit_everett(model, segments, interp="spline"):
+    """`model` (a crisp or ramp relay grid) with the weights of `everett_weights`; returns ``(model, info)`` like `fit_preisach`."""
+    if model.linear:
+        raise ValueError("Everett identification has no linear term: use a Preisach grid with linear=False")
+    w, off = everett_weights(segments, np.asarray(model.levels), interp)
+    fitted = model.with_linear_weights(jnp.asarray(np.concatenate([w, [off]])))
+    A, y = design(fitted, segments)
+    res = A @ fitted.linear_weights() - y
+    n_desc = sum(int(len(_as_seg(s)[0]) - np.argmax(_as_seg(s)[0])) for s in segments)
+    return fitted, {"sse": float(res @ res), "n": int(A.shape[0]), "dof": float(min(n_desc, model.n_relays + 1)), "lam": None,
+                    "ridge": None, "method": f"everett-{interp}", "n_levels": model.n_levels, "width": float(model.width),
+                    "n_nonzero": int(np.sum(np.abs(w) > 0)), "n_negative": int(np.sum(w < 0))}
+
+
 #: Default inner-CV grids: levels per input range and penalty per sample.
 N_LEVELS_GRID = (18, 24, 35)
 LAM_GRID = (1e-5, 1e-4, 1e-3, 1e-2, 1e-1)
@@ -308,17 +393,26 @@ def _as_seg(seg):
 
 
 def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_grid=LAM_GRID, ridge=0.0, linear=False,
-                    init="descended", ramp=True, keep=None, verbose=False):
+                    init="descended", ramp=True, everett=EVERETT_INTERPOLANTS, criterion="rmse", keep=None, verbose=False):
     """Preisach fit with ``(n_levels, lam)`` chosen by inner cross-validation on ``segments`` only.
 
     Inner folds: leave one segment out, except the segments in ``keep`` (default:
     the one with the widest input range, e.g. the major loop, which always
     trains); with a single segment, its last 30 % (of the scored samples) is the
     inner validation block.  Criterion: pooled inner held-out RMSE.  The chosen
-    setting is refitted on all segments.  Returns ``(model, info)``; ``info``
-    holds the CV table, the choice and the effective degrees of freedom.
+    setting is refitted on all segments.  When the segments are first-order
+    reversal curves, the Everett (FORC-surface interpolation) grids of
+    ``everett`` compete in the same inner folds (``lam`` is then None).
+    ``criterion``: ``"rmse"`` (default, pooled inner RMSE) or ``"max"`` (pooled
+    inner max |error|, the quantity of the error ratio e_r; noisier).
+    Returns ``(model, info)``; ``info`` holds the CV table, the choice and the
+    effective degrees of freedom.
     """
     import sys
+
+    if criterion not in ("rmse", "max"):
+        raise ValueError(f"criterion must be 'rmse' or 'max', got {criterion!r}")
+    key = "cv_rmse" if criterion == "rmse" else "cv_max_abs"
 
     segs = [_as_seg(s) for s in segments]
     if keep is None:
@@ -342,23 +436,40 @@ def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_
         nonneg = m0.nonnegative_columns()
         P1 = penalty_matrix(m0, 1.0, ridge)
         for lam in lam_grid:
-            sse, cnt = 0.0, 0
+            sse, cnt, mx = 0.0, 0, 0.0
             for tr, va in folds:
                 A = np.concatenate([blocks[i][0] for i in tr])
                 y = np.concatenate([blocks[i][1] for i in tr])
                 x, _ = solve_penalised(A, y, nonneg, P1 * (lam * A.shape[0]), 1.0)
                 for i in va:
                     r = blocks[i][0] @ x - blocks[i][1]
-                    sse += float(r @ r)
-                    cnt += r.size
-            row = {"n_levels": int(n), "lam": float(lam), "cv_rmse": float(np.sqrt(sse / max(cnt, 1)))}
+                    sse, cnt, mx = sse + float(r @ r), cnt + r.size, max(mx, float(np.max(np.abs(r), initial=0.0)))
+            row = {"n_levels": int(n), "lam": float(lam), "method": "penalised", "cv_rmse": float(np.sqrt(sse / max(cnt, 1))), "cv_max_abs": mx}
             table.append(row)
             if verbose:
-                print(f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}", file=sys.stderr, flush=True)
-            if best is None or row["cv_rmse"] < best["cv_rmse"]:
+                print(f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}", file=sys.stderr, flush=True)
+            if best is None or row[key] < best[key]:
+                best = row
+        use_everett = everett and not linear and inner.startswith("leave-one") and forc_shaped(segs)
+        for interp in (everett if use_everett else ()):
+            sse, cnt, mx = 0.0, 0, 0.0
+            for tr, va in folds:
+                x = fit_everett(m0, [segs[i] for i in tr], interp)[0].linear_weights()
+                for i in va:
+                    r = blocks[i][0] @ np.asarray(x) - blocks[i][1]
+                    sse, cnt, mx = sse + float(r @ r), cnt + r.size, max(mx, float(np.max(np.abs(r), initial=0.0)))
+            row = {"n_levels": int(n), "lam": None, "method": f"everett-{interp}", "cv_rmse": float(np.sqrt(sse / max(cnt, 1))), "cv_max_abs": mx}
+            table.append(row)
+            if verbose:
+                print(f"  preisach inner CV: n_levels {n}, everett-{interp}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}", file=sys.stderr, flush=True)
+            if row[key] < best[key]:
                 best = row
     full = [_as_seg(s) for s in segments]
-    model, info = fit_preisach(Preisach.from_range(u_min, u_max, n_levels=best["n_levels"], linear=linear, init=init, ramp=ramp), full,
-                               lam=best["lam"], ridge=ridge)
-    info.update({"inner_cv": inner, "n_inner_folds": len(folds), "cv_table": table, "chosen": best})
+    m_best = Preisach.from_range(u_min, u_max, n_levels=best["n_levels"], linear=linear, init=init, ramp=ramp)
+    if best["method"] == "penalised":
+        model, info = fit_preisach(m_best, full, lam=best["lam"], ridge=ridge)
+        info["method"] = "penalised"
+    else:
+        model, info = fit_everett(m_best, full, best["method"].split("-", 1)[1])
+    info.update({"inner_cv": inner, "criterion": criterion, "n_inner_folds": len(folds), "cv_table": table, "chosen": best})
     return model, info

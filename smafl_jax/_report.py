@@ -102,7 +102,7 @@ def _report_md(rec, res):
     for c in res["candidates"]:
         ev = c["evidence"]
         if c.get("fitted"):
-            par = ", ".join(f"{k}={v:.4g}" for k, v in c["parameters"].items())
+            par = ", ".join(f"{k}={v:.4g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in c["parameters"].items())
             L.append(f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
                      f"{c['delta_bic']:.1f} | {c['accepted']} | {par} |")
         else:

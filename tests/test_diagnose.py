@@ -21,6 +21,7 @@ from smafl_jax._effects import (
     RateDependence,
     ResistanceTC,
     SensorLag,
+    StrainAccumulation,
     fractional_delay,
 )
 from smafl_jax._residuals import autocorrelation, cross_correlation, ljung_box
@@ -63,7 +64,8 @@ def test_no_effect_equals_base(truth, drives):
     "effect",
     [Delay(tau=jnp.asarray(1e-9)), SensorLag(tau=jnp.asarray(1e-9)), ResistanceTC(beta=jnp.asarray(1e-9)), NonlinearCooling(gamma=jnp.asarray(1e-9)),
      AsymmetricCooling(log_ratio=jnp.asarray(0.0)), RateDependence(c=jnp.asarray(1e-9)), Creep(g=jnp.asarray(0.0), tau=jnp.asarray(50.0)),
-     OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5)), InputWarp(c=jnp.asarray(0.5), b=jnp.asarray(1e3))],
+     OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5)), InputWarp(c=jnp.asarray(0.5), b=jnp.asarray(1e3)),
+     StrainAccumulation(c=jnp.asarray(0.0))],
     ids=lambda e: e.name,
 )
 def test_vanishing_effect_is_base(truth, drives, effect):
@@ -188,6 +190,73 @@ def test_creep_reference_and_json(truth, drives, tmp_path):
         back = sj.load_model(tmp_path / "creep.json")
         assert float(back.get("creep").g) == g and float(back.get("creep").tau) == tau
         np.testing.assert_allclose(np.asarray(sj.simulate(back, u, dt)), y, rtol=1e-12, atol=1e-12 * max(1.0, abs(g)))
+
+
+def test_strain_accumulation_reference_and_json(truth, drives, tmp_path):
+    """strain_accumulation = numpy loop: y = H + c D, D accumulated -phi dt / 1000 s, phi the normalised effective
+    voltage above its start; monotone D; EUPI base too; JSON round trip (a stale ``rho`` field is refused) and
+    `smafl simulate`."""
+    from smafl_jax.cli import main
+
+    u = np.asarray(drives["steps"][1])[:700]
+    dt = 0.5
+    for base in (truth, truth.hysteresis):
+        h = np.asarray(sj.simulate(ExtendedModel(base, ()), u, dt))
+        x = np.asarray(ExtendedModel(base, ()).hysteresis_input(jnp.asarray(u), dt))
+        eupi = truth.hysteresis
+        s = (x - float(eupi.u_ref)) / float(eupi.u_span)
+        d, col = 0.0, np.empty_like(h)
+        for k in range(len(u)):
+            phi = min(max(s[k] - s[0], 0.0), 1.0)
+            d -= phi * dt / 1000.0
+            col[k] = d
+        for c in (0.3, -0.2):
+            m = ExtendedModel(base, (StrainAccumulation(c=jnp.asarray(c)),))
+            y = np.asarray(sj.simulate(m, u, dt))
+            np.testing.assert_allclose(y, h + c * col, rtol=1e-10, atol=1e-12)
+            assert np.ptp(y - h) > 1e-3  # the effect is visible on this drive
+    m = ExtendedModel(truth, (StrainAccumulation(c=jnp.asarray(0.3)),))
+    acc = np.asarray(sj.simulate(m, u, dt)) - np.asarray(sj.simulate(truth, u, dt))
+    assert np.all(np.diff(acc) <= 1e-15)  # permanent strain only accumulates
+    sj.save_model(tmp_path / "sa.json", m)
+    back = sj.load_model(tmp_path / "sa.json")
+    assert back.effect_names == ["strain_accumulation"] and float(back.get("strain_accumulation").c) == 0.3
+    np.testing.assert_allclose(np.asarray(sj.simulate(back, u, dt)), np.asarray(sj.simulate(m, u, dt)), atol=1e-12)
+    doc = json.loads((tmp_path / "sa.json").read_text())
+    doc["model"]["effects"][0]["rho"] = 1.0  # written before the recoverable fraction was dropped
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    with pytest.raises(sj.UserInputError, match="no field 'rho'"):
+        sj.load_model(tmp_path / "old.json")
+    csv = tmp_path / "u.csv"
+    sj.atomic_write_csv(csv, {"time_s": np.arange(u.size) * dt, "voltage_V": u})
+    assert main(["simulate", str(tmp_path / "sa.json"), str(csv), "--out", str(tmp_path / "sim.csv")]) == 0
+
+
+def test_strain_accumulation_c_is_profiled(truth, drives):
+    """c enters linearly: the variable-projection fit recovers it exactly from noiseless data."""
+    from smafl_jax._diagnose import make_split, profile_gains
+
+    rec, true = synthetic_effect_record(truth, drives, "strain_accumulation", seed=2, noise_sd=0.0)
+    m0 = ExtendedModel(truth, (StrainAccumulation(c=jnp.asarray(0.0)),))
+    m, sse = profile_gains(m0, make_split(rec).train)
+    assert float(m.get("strain_accumulation").c) == pytest.approx(float(true.effects[0].c), rel=1e-5)
+    assert sse < 1e-12 * len(rec)
+    # on an EUPI base the effect leaves no nonlinear parameter: fit_extended is one bounded least-squares solve
+    from smafl_jax._diagnose import fit_extended
+
+    split = make_split(rec)
+    fe, info = fit_extended(truth.hysteresis, ["strain_accumulation"], split)
+    assert info["nonlinear_parameters"] == 0 and info["n_starts"] == 1 and info["converged"]
+    assert np.isfinite(float(fe.get("strain_accumulation").c)) and info["train_sse"] <= profile_gains(ExtendedModel(truth.hysteresis, ()), split.train)[1]
+
+
+def test_diagnosis_finds_strain_accumulation(truth, drives):
+    rec, true = synthetic_effect_record(truth, drives, "strain_accumulation", seed=6)
+    res, *_ = diagnose(rec, max_candidates=2, refit=False, verbose=False)
+    assert res["selected"] == ["strain_accumulation"]
+    assert res["extended"]["heldout_rmse"] < 2.0 * 0.003 < 0.5 * res["base"]["heldout_rmse"]
+    p = res["extended"]["parameters"]["strain_accumulation"]
+    assert p["c"] == pytest.approx(float(true.effects[0].c), rel=0.1) and set(p) == {"c"}
 
 
 def test_creep_fit_stays_bounded(truth, drives):
@@ -358,14 +427,27 @@ def _preisach_forc_record(dt, with_branch, seed=0):
     return Record.from_arrays(np.arange(u.size) * dt, u, y, input_name="voltage_V", output_name="displacement_mm", extra=extra)
 
 
-def test_nonlocal_memory_selected_on_rate_free_preisach_record():
+def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
+    from smafl_jax._report import write_diagnosis
+
     rec = _preisach_forc_record(10.0, True)
-    res, _, ext, _ = diagnose(rec, effects=["nonlocal_memory"], verbose=False)
+    res, base, ext, split = diagnose(rec, effects=["nonlocal_memory"], verbose=False)
     assert res["selected"] == ["nonlocal_memory"] and isinstance(ext, sj.Preisach)
     cand = res["candidates"][-1]
     assert cand["name"] == "nonlocal_memory" and cand["accepted"]
-    assert 0 < cand["parameters"]["effective_dof"] < ext.n_relays + 1  # BIC counts trace(H), not the nominal weights
+    assert 0 < cand["parameters"]["effective_dof"] <= ext.n_relays + 1  # BIC counts trace(H), not the nominal weights
     assert res["extended"]["heldout_rmse"] < 0.5 * res["base"]["heldout_rmse"]
+    # the deployed Preisach (inner CV rerun over every branch) is written, loads, and fits the whole record at least as well
+    write_diagnosis(tmp_path, rec, res, base, ext, split)
+    dep, train_fit = sj.load_model(tmp_path / "extended_fit.json"), sj.load_model(tmp_path / "extended_fit_train.json")
+    assert isinstance(dep, sj.Preisach) and isinstance(train_fit, sj.Preisach) and float(dep.width) > 0
+    d = res["deployed"]
+    assert sorted(d["segments"]) == sorted(split.train_labels + split.test_labels)
+    assert d["extended_parameters"]["nonlocal_memory"]["method"] in ("penalised", "everett-spline", "everett-pchip", "everett-linear")
+    y_all = np.asarray(rec.y)
+    err = lambda m: np.sqrt(np.mean((np.asarray(m.simulate(rec.u)) - y_all) ** 2))  # noqa: E731  (branches chain: each starts at the bottom)
+    assert err(dep) <= err(train_fit) + 1e-12
+    assert "Deployed models" in (tmp_path / "report.md").read_text()
 
 
 def test_nonlocal_memory_not_offered_with_dynamics():

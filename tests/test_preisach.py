@@ -164,3 +164,54 @@ def test_inner_cv_picks_the_true_grid(rng):
     model, info = cv_fit_preisach(segs, 0.0, 3.5, n_levels_grid=(5, 12), lam_grid=(1e-6, 1e-2))
     assert info["chosen"]["n_levels"] == 12 and model.n_levels == 12
     assert info["n_inner_folds"] == len(segs) - 1 and 0 < info["dof"] <= model.n_relays + 1
+
+
+def test_everett_reproduces_measured_forcs_and_recovers_the_grid():
+    """FORCs with a reversal at every cell edge determine a Preisach grid exactly (Mayergoyz): Everett weights = the truth."""
+    from smafl_jax._preisach import everett_weights, fit_everett
+
+    truth = _smooth_truth(n=12)
+    h = 3.5 / 12
+    alphas = [h * k for k in range(1, 12)]
+    segs = [(u, np.asarray(truth.simulate(u))) for u in _forc_input(alphas, step=h)]
+    for interp in ("spline", "pchip", "linear"):
+        w, off = everett_weights(segs, np.asarray(truth.levels), interp)
+        np.testing.assert_allclose(w, np.asarray(truth.w), atol=1e-9)
+        np.testing.assert_allclose(off, float(truth.offset), atol=1e-12)
+    # with fewer branches the measured ones are still reproduced, and held-out FORCs are interpolated
+    train = [(u, np.asarray(truth.simulate(u))) for u in _forc_input([3.1, 2.9, 2.7, 2.5, 2.3, 2.1, 1.7, 1.3], step=0.1)]
+    fitted, info = fit_everett(Preisach.from_range(0.0, 3.5, n_levels=35), train)
+    assert np.sqrt(info["sse"] / info["n"]) < 1e-9
+    test = _forc_input([3.0, 2.6, 2.2], step=0.1)
+    err = np.concatenate([np.asarray(fitted.simulate(u)) - np.asarray(truth.simulate(u)) for u in test])
+    span = np.ptp(np.concatenate([np.asarray(truth.simulate(u)) for u in test]))
+    assert np.max(np.abs(err)) < 0.05 * span
+
+
+def test_everett_rejects_non_forc_segments():
+    from smafl_jax._preisach import everett_weights, forc_shaped
+
+    u = np.concatenate([np.linspace(0, 3, 20), np.linspace(3, 1, 10), np.linspace(1, 2, 5)])  # a minor loop, not a FORC
+    segs = [(u, u), (np.linspace(0, 3.5, 10), np.linspace(0, 1, 10))]
+    assert not forc_shaped(segs)
+    with pytest.raises(ValueError, match="first-order reversal curves"):
+        everett_weights(segs, np.linspace(0.1, 3.4, 12))
+    with pytest.raises(ValueError, match="interp"):
+        everett_weights([(np.r_[0.0, 1.0, 0.0], np.r_[0.0, 1.0, 0.0])] * 2, np.linspace(0.1, 0.9, 5), "cubic")
+
+
+def test_inner_cv_criteria_and_everett_candidates(rng):
+    truth = _smooth_truth(n=12)
+    inputs = _forc_input([3.1, 2.9, 2.7, 2.5, 2.3, 2.1, 1.7])
+    segs = [(u, np.asarray(truth.simulate(u)) + 0.01 * rng.standard_normal(u.size)) for u in inputs]
+    for crit, key in (("rmse", "cv_rmse"), ("max", "cv_max_abs")):
+        model, info = cv_fit_preisach(segs, 0.0, 3.5, n_levels_grid=(12, 35), lam_grid=(1e-6, 1e-2), criterion=crit)
+        assert {r["method"] for r in info["cv_table"]} == {"penalised", "everett-spline", "everett-pchip", "everett-linear"}
+        assert info["chosen"][key] == min(r[key] for r in info["cv_table"]) and info["criterion"] == crit
+        assert info["method"] == info["chosen"]["method"] and model.n_levels == info["chosen"]["n_levels"]
+    with pytest.raises(ValueError, match="criterion"):
+        cv_fit_preisach(segs, 0.0, 3.5, criterion="bic")
+    # segments that are not FORCs: no Everett candidate
+    minor = [np.concatenate([u, np.linspace(0.0, 1.5, 16)]) for u in inputs[:3]]
+    _, info = cv_fit_preisach([(u, np.asarray(truth.simulate(u))) for u in minor], 0.0, 3.5, n_levels_grid=(12,), lam_grid=(1e-3,))
+    assert {r["method"] for r in info["cv_table"]} == {"penalised"}
