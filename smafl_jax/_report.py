@@ -81,6 +81,7 @@ def _report_md(rec, res):
     b, x = res["base"], res["extended"]
     L = [f"# Diagnosis of `{rec.name}`", "",
          f"- Base model: {b['rule']}", f"- Split: {res['split']['rule']}",
+         *([f"- **Warning:** {res['split']['coverage']['warning']}"] if res["split"].get("coverage", {}).get("warning") else []),
          f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**", "",
          "| model | train RMSE | held-out RMSE | held-out e_r (%) |", "|---|---|---|---|",
          f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",

@@ -454,3 +454,20 @@ def test_nonlocal_memory_not_offered_with_dynamics():
     rec = _preisach_forc_record(0.5, False)  # dt 0.5 s, no branch column: not rate-free (cascade base)
     res, _, _, _ = diagnose(rec, effects=["nonlocal_memory"], verbose=False)
     assert all(c["name"] != "nonlocal_memory" for c in res["candidates"]) and res["selected"] == []
+
+
+def test_split_coverage_flags_an_untrained_branch():
+    from smafl_jax._diagnose import make_split, split_coverage
+
+    t = np.arange(1000) * 0.1
+    # heat, hold hot, cool: the last 30 % (the time block held out) holds the only cooling step
+    u = np.where(t < 10, 25 + 5.5 * t, np.where(t < 75, 80.0, np.maximum(80 - 5.5 * (t - 75), 25.0)))
+    rec = sj.Record.from_arrays(t, u, np.tanh((u - 50) / 10), input_name="temperature_C", output_name="length")
+    cov = split_coverage(make_split(rec))
+    assert cov["covered_fraction"] < 0.9 and "extrapolation" in cov["warning"]
+    assert cov["by_direction"]["falling"]["covered"] < 0.1 and cov["by_direction"]["falling"]["heldout_samples"] > 0
+    # the same cycle repeated: the held-out block repeats trained branches
+    u2 = np.tile(u[::4], 4)
+    rec2 = sj.Record.from_arrays(t, u2, np.tanh((u2 - 50) / 10), input_name="temperature_C", output_name="length")
+    cov2 = split_coverage(make_split(rec2))
+    assert cov2["covered_fraction"] > 0.95 and "warning" not in cov2

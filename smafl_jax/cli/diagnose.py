@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 
 def add_parser(sub):
     p = sub.add_parser("diagnose", help="fit the base model, study its residuals, attribute and fit missing physical effects")
@@ -37,6 +39,9 @@ def run(args):
     res, base, ext, split = diagnose(rec, effects=args.effects, max_candidates=args.max_candidates, min_gain=args.min_gain,
                                        refit=not args.no_refit, verbose=not args.quiet)
     write_diagnosis(out, rec, res, base, ext, split)
+    warning = res["split"].get("coverage", {}).get("warning")
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
     sel = ", ".join(res["selected"]) or "none"
     print(f"selected: {sel}; held-out RMSE {res['base']['heldout_rmse']:.4g} -> {res['extended']['heldout_rmse']:.4g} "
           f"(e_r {res['base']['heldout']['e_r_percent']:.2f} % -> {res['extended']['heldout']['e_r_percent']:.2f} %); wrote {out}")
