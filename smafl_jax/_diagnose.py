@@ -829,10 +829,10 @@ def refit_whole_record(record, base, ext, result, verbose=True):
     The structure (effects, or the Preisach replacement) stays as chosen on the
     split; effect parameters restart from their split fit; the Preisach grid,
     penalty or Everett interpolant is chosen again by its inner CV over all
-    segments.  The held-out figures of the diagnosis remain
-    those of the split fit: they estimate how the deployed model predicts new
-    data, which it can only do better with the held-out part added.  Returns
-    ``(base_all, ext_all, info)``.
+    segments.  The held-out figures of the diagnosis remain those of the
+    split fit: the deployed model has no held-out data left, and with more
+    data it is expected to predict new data at least as well (not measured
+    here).  Returns ``(base_all, ext_all, info)``.
     """
     t0 = time.time()
     full = whole_record_split(record)
