@@ -9,8 +9,6 @@ from pathlib import Path
 import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "experiments"))
 import calibration as cal
-import smafl_jax as sj
-from scipy.special import logsumexp
 
 K1, K2 = cal.K1, cal.K2
 
@@ -51,7 +49,6 @@ def grid_post(u, y, dt, half=8.0, G1=801, G2=801):
     dls = np.log(sg[1] / sg[0])
     # integrate sigma: sum over log-grid of p(sigma) * L * sigma (d sigma = sigma dlog)
     lp_s = -0.5 * (sg / yr) ** 2  # halfnormal up to const
-    logL = np.full(SSR.shape, -np.inf)
     # chunk over sigma to bound memory
     acc = None
     for s, lps in zip(sg, lp_s):
