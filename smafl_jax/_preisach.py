@@ -301,15 +301,20 @@ def fit_preisach(model, segments, *, lam=1e-2, ridge=0.0):
 EVERETT_INTERPOLANTS = ("spline", "pchip", "linear")
 
 
-def forc_shaped(segments, rtol=1e-9):
-    """True if every segment rises monotonically to its maximum, then falls monotonically (first-order reversal curves)."""
-    for seg in segments:
-        u = np.asarray(_as_seg(seg)[0], float)
+def forc_shaped(segments, rtol=1e-9, start_tol=0.01):
+    """True for first-order reversal curves: every segment starts at the bottom of the common input range
+    (within ``start_tol`` of it, so all relays start down), rises monotonically to its maximum, then falls monotonically."""
+    us = [np.asarray(_as_seg(seg)[0], float) for seg in segments]
+    if len(us) < 2 or any(u.size < 2 for u in us):
+        return False
+    bottom = min(float(u.min()) for u in us)
+    span = max(float(u.max()) for u in us) - bottom
+    for u in us:
         k = int(np.argmax(u))
-        tol = rtol * max(float(np.ptp(u)), 1e-300)
-        if u.size < 2 or np.any(np.diff(u[: k + 1]) < -tol) or np.any(np.diff(u[k:]) > tol):
+        tol = rtol * max(span, 1e-300)
+        if u[0] - bottom > start_tol * span or np.any(np.diff(u[: k + 1]) < -tol) or np.any(np.diff(u[k:]) > tol):
             return False
-    return len(segments) >= 2
+    return True
 
 
 def everett_weights(segments, levels, interp="spline"):

@@ -194,6 +194,9 @@ def test_everett_rejects_non_forc_segments():
     u = np.concatenate([np.linspace(0, 3, 20), np.linspace(3, 1, 10), np.linspace(1, 2, 5)])  # a minor loop, not a FORC
     segs = [(u, u), (np.linspace(0, 3.5, 10), np.linspace(0, 1, 10))]
     assert not forc_shaped(segs)
+    assert forc_shaped([(u, u) for u in _forc_input([3.0, 2.0])])
+    mid = np.r_[1.5, 2.5, 1.0]  # starts mid-range: its relays are not all down
+    assert not forc_shaped([(u, u) for u in _forc_input([3.0])] + [(mid, mid)])
     with pytest.raises(ValueError, match="first-order reversal curves"):
         everett_weights(segs, np.linspace(0.1, 3.4, 12))
     with pytest.raises(ValueError, match="interp"):
