@@ -113,7 +113,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
     ap.add_argument("--out", default=str(ROOT / "experiments" / "results" / "forc_preisach_cv.json"))
-    ap.add_argument("--lobo", action="store_true", help="also leave-one-branch-out with nested inner CV (slow, ~10 min)")
+    ap.add_argument("--lobo", action="store_true", help="also leave-one-branch-out with nested inner CV (about 2 min on 2 cores)")
     a = ap.parse_args(argv)
     rec = load_record(Path(a.data) / "sma_wing_forc_train.csv")
     u_min, u_max = float(np.min(rec.u)), float(np.max(rec.u))

@@ -525,8 +525,7 @@ def section_diagnosis(recs, out, quick, real):
     rows = []
     for label, rec in jobs:
         sub = prepare_out_dir(out / f"diagnosis_{rec.name}", announce=False)
-        # --quick skips the whole-record refit (the deployed models); the held-out figures reported here do not use it
-        res, base, ext, split = diagnose(rec, refit=not quick, verbose=False)
+        res, base, ext, split = diagnose(rec, verbose=False)
         write_diagnosis(sub, rec, res, base, ext, split)
         rows.append(
             {

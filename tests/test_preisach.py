@@ -218,3 +218,21 @@ def test_inner_cv_criteria_and_everett_candidates(rng):
     minor = [np.concatenate([u, np.linspace(0.0, 1.5, 16)]) for u in inputs[:3]]
     _, info = cv_fit_preisach([(u, np.asarray(truth.simulate(u))) for u in minor], 0.0, 3.5, n_levels_grid=(12,), lam_grid=(1e-3,))
     assert {r["method"] for r in info["cv_table"]} == {"penalised"}
+
+
+def test_penalised_solver_matches_bounded_least_squares(rng):
+    """NNLS with split free columns = scipy's BVLS on the same penalised problem (KKT: same unique minimiser)."""
+    from scipy.optimize import lsq_linear
+
+    from smafl_jax._preisach import solve_penalised
+
+    A = rng.standard_normal((80, 12))
+    y = A @ np.r_[rng.uniform(-1, 1, 9), -2.0, 0.5, 3.0] + 0.1 * rng.standard_normal(80)
+    nonneg = np.r_[np.ones(10, bool), np.zeros(2, bool)]
+    P = 0.3 * np.eye(12)
+    x, dof = solve_penalised(A, y, nonneg, P, 1.0)
+    aug_A, aug_y = np.vstack([A, np.sqrt(0.3) * np.eye(12)]), np.r_[y, np.zeros(12)]
+    ref = lsq_linear(aug_A, aug_y, bounds=(np.where(nonneg, 0.0, -np.inf), np.inf), method="bvls", tol=1e-14).x
+    np.testing.assert_allclose(x, ref, atol=1e-8)
+    assert np.any(x[:10] == 0.0) and x[10] < 0  # some bounds active, free columns signed
+    assert 0 < dof < 12
