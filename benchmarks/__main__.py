@@ -83,18 +83,26 @@ def _fmt(x):
 
 
 def _machine_line(m):
-    return (f"{m['date_utc']}; {m['cpu']}, {m['cpus_usable']} usable CPU cores of {m['cpu_count']}, "
-            f"{m['memory_gib']} GiB RAM; {m['os']}; Python {m['python']}, jax {m['jax']} ({m['jax_devices']}), "
-            f"numpy {m['numpy']}, numba {m['numba']}; load average during the run {m.get('loadavg', '?')}")
+    return (
+        f"{m['date_utc']}; {m['cpu']}, {m['cpus_usable']} usable CPU cores of {m['cpu_count']}, "
+        f"{m['memory_gib']} GiB RAM; {m['os']}; Python {m['python']}, jax {m['jax']} ({m['jax_devices']}), "
+        f"numpy {m['numpy']}, numba {m['numba']}; load average during the run {m.get('loadavg', '?')}"
+    )
 
 
 def markdown(doc):
-    lines = ["# smafl-jax benchmarks", "",
-             f"Command: `{doc['command']}` (from the repository root).", "",
-             f"Machine: {_machine_line(doc['machine'])}.", "",
-             "Every ratio is measured side by side in the same run on that machine; compile time is excluded "
-             "(warm-up call, then best of N wall-clock times) unless a row says otherwise.", ""]
-    for key, _, title in SECTIONS:
+    lines = [
+        "# smafl-jax benchmarks",
+        "",
+        f"Command: `{doc['command']}` (from the repository root).",
+        "",
+        f"Machine: {_machine_line(doc['machine'])}.",
+        "",
+        "Every ratio is measured side by side in the same run on that machine; compile time is excluded "
+        "(warm-up call, then best of N wall-clock times) unless a row says otherwise.",
+        "",
+    ]
+    for key, _, _title in SECTIONS:
         sec = doc["sections"].get(key)
         if sec is None:
             continue
@@ -103,13 +111,19 @@ def markdown(doc):
             lines += [f"Not run: {sec['note']}", ""]
             continue
         when = sec["machine"]["date_utc"]
-        lines += [f"Ratio: {sec.get('ratio_meaning', DEFAULT_RATIO)}. Section took {sec['seconds']:.0f} s"
-                  f"{' (quick mode)' if sec['quick'] else ''}, finished {when}.", "",
-                  "| benchmark | ours | baseline | ratio | unit | note |", "| --- | ---: | ---: | ---: | --- | --- |"]
+        lines += [
+            f"Ratio: {sec.get('ratio_meaning', DEFAULT_RATIO)}. Section took {sec['seconds']:.0f} s"
+            f"{' (quick mode)' if sec['quick'] else ''}, finished {when}.",
+            "",
+            "| benchmark | ours | baseline | ratio | unit | note |",
+            "| --- | ---: | ---: | ---: | --- | --- |",
+        ]
         for r in sec["rows"]:
             note = str(r.get("note", "")).replace("|", "\\|")
             name = str(r["name"]).replace("|", "\\|")
-            lines.append(f"| {name} | {_fmt(r['ours'])} | {_fmt(r['baseline'])} | {_fmt(r.get('ratio'))} | {r['unit']} | {note} |")
+            lines.append(
+                f"| {name} | {_fmt(r['ours'])} | {_fmt(r['baseline'])} | {_fmt(r.get('ratio'))} | {r['unit']} | {note} |"
+            )
         lines.append("")
     lines += ["Scaling (log-log): `scaling.png` beside this file.", ""]
     return "\n".join(lines)
@@ -128,7 +142,9 @@ def scaling_plot(doc, path):
     for key, sec in doc["sections"].items():
         for r in sec.get("rows", []):
             if {"scale_series", "scale_x", "scale_seconds"} <= set(r):
-                extra.setdefault(r.get("scale_xlabel", "size"), []).append((f"{key}: {r['scale_series']}", r["scale_x"], r["scale_seconds"]))
+                extra.setdefault(r.get("scale_xlabel", "size"), []).append(
+                    (f"{key}: {r['scale_series']}", r["scale_x"], r["scale_seconds"])
+                )
     n_panels = (2 if ops else 0) + len(extra)
     if n_panels == 0:
         return False
@@ -179,7 +195,7 @@ def update_readme(doc, readme):
         rest = rest.split(README_END, 1)[1]
     else:  # first time: the section ends where the next heading or marker starts
         cut = [i for i in (rest.find("\n## "), rest.find("\n<!-- section:")) if i >= 0]
-        rest = rest[min(cut):] if cut else ""
+        rest = rest[min(cut) :] if cut else ""
     atomic_write_text(readme, head + README_MARK + "\n" + body.rstrip("\n") + "\n" + README_END + "\n\n" + rest.lstrip("\n"))
 
 
@@ -187,24 +203,43 @@ def readme_section(doc):
     md = markdown(doc).split("\n")
     # drop the document title; demote section headings one level under "## Performance"
     body = [("###" + ln[2:]) if ln.startswith("## ") else ln for ln in md[2:]]
-    body = ["![cost vs record length and operator count (log-log)](benchmarks/results/scaling.png)"
-            if ln.startswith("Scaling (log-log)") else ln for ln in body]
-    return "\n".join(["## Performance", "",
-                      "Regenerate with `python -m benchmarks --readme` (about 6 min on 2 cores; `--quick` for a "
-                      "smoke run, `--only operators` for one section). Full tables: `benchmarks/results/RESULTS.md`; "
-                      "what the numbers mean and why: `benchmarks/README.md`.", ""] + body)
+    body = [
+        "![cost vs record length and operator count (log-log)](benchmarks/results/scaling.png)"
+        if ln.startswith("Scaling (log-log)")
+        else ln
+        for ln in body
+    ]
+    return "\n".join(
+        [
+            "## Performance",
+            "",
+            "Regenerate with `python -m benchmarks --readme` (about 6 min on 2 cores; `--quick` for a "
+            "smoke run, `--only operators` for one section). Full tables: `benchmarks/results/RESULTS.md`; "
+            "what the numbers mean and why: `benchmarks/README.md`.",
+            "",
+        ]
+        + body
+    )
 
 
 def main(argv=None):
     keys = [k for k, _, _ in SECTIONS]
     p = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
     p.add_argument("--quick", action="store_true", help="smaller sizes, fewer repeats (smoke run)")
-    p.add_argument("--only", action="append", choices=keys, metavar="SECTION",
-                   help=f"run only this section (repeatable; one of {', '.join(keys)}); other sections are kept from an earlier results.json in --out")
+    p.add_argument(
+        "--only",
+        action="append",
+        choices=keys,
+        metavar="SECTION",
+        help=f"run only this section (repeatable; one of {', '.join(keys)}); other sections are kept from an earlier results.json in --out",
+    )
     p.add_argument("--out", default=str(HERE / "results"), help="output folder (default benchmarks/results)")
     p.add_argument("--readme", action="store_true", help="also rewrite README.md's performance section")
-    p.add_argument("--render", action="store_true",
-                   help="measure nothing: re-render RESULTS.md, scaling.png (and README with --readme) from --out/results.json")
+    p.add_argument(
+        "--render",
+        action="store_true",
+        help="measure nothing: re-render RESULTS.md, scaling.png (and README with --readme) from --out/results.json",
+    )
     args = p.parse_args(argv)
 
     import json
@@ -216,7 +251,7 @@ def main(argv=None):
         try:
             doc = json.loads((out / "results.json").read_text())
         except (OSError, ValueError) as exc:
-            raise SystemExit(f"--render needs {out / 'results.json'} from an earlier run: {exc}")
+            raise SystemExit(f"--render needs {out / 'results.json'} from an earlier run: {exc}") from exc
         atomic_write_text(out / "RESULTS.md", markdown(doc))
         scaling_plot(doc, out / "scaling.png")
         if args.readme:
@@ -246,7 +281,11 @@ def main(argv=None):
     plotted = scaling_plot(doc, out / "scaling.png")
     if args.readme:
         update_readme(doc, ROOT / "README.md")
-    progress(f"wrote {out / 'RESULTS.md'}, results.json" + (", scaling.png" if plotted else "") + (", README.md" if args.readme else ""))
+    progress(
+        f"wrote {out / 'RESULTS.md'}, results.json"
+        + (", scaling.png" if plotted else "")
+        + (", README.md" if args.readme else "")
+    )
     bad = [k for k, s in sections.items() if s["status"] == "failed"]
     return 1 if bad and len(bad) == len([s for s in sections.values() if s["status"] != "skipped"]) else 0
 

@@ -25,11 +25,19 @@ def main():
     t_warm = time.perf_counter() - t0
     y_tr = np.asarray(sj.simulate(res.model, tr.u, tr.dt))
     y_te = np.asarray(sj.simulate(res.model, te.u, te.dt))
-    print(json.dumps({
-        "fit_s": t_cold, "fit_warm_s": t_warm, "converged": res.converged, "n_steps": res.n_steps,
-        "train_rmse": sj.rmse(tr.y, y_tr).item(), "test_rmse": sj.rmse(te.y, y_te).item(),
-        "n_params": int(sum(np.size(x) for x in [res.model.hysteresis.v, res.model.hysteresis.w])) + 5,
-    }))
+    print(
+        json.dumps(
+            {
+                "fit_s": t_cold,
+                "fit_warm_s": t_warm,
+                "converged": res.converged,
+                "n_steps": res.n_steps,
+                "train_rmse": sj.rmse(tr.y, y_tr).item(),
+                "test_rmse": sj.rmse(te.y, y_te).item(),
+                "n_params": int(sum(np.size(x) for x in [res.model.hysteresis.v, res.model.hysteresis.w])) + 5,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -49,10 +49,20 @@ def main():
     rng = np.random.default_rng(0)
     nnx = nny = 8
     ny = nu = 1
-    params = [0.5 * np.eye(nx), 0.1 * rng.normal(size=(nx, nu)), 0.1 * rng.normal(size=(ny, nx)),
-              0.1 * rng.normal(size=(nnx, nx)), 0.5 * rng.normal(size=(nnx, nu)), 0.5 * rng.normal(size=(nx, nnx)),
-              np.zeros(nnx), np.zeros(nx), 0.5 * rng.normal(size=(nny, nx)), 0.5 * rng.normal(size=(ny, nny)),
-              np.zeros(nny), np.zeros(ny)]
+    params = [
+        0.5 * np.eye(nx),
+        0.1 * rng.normal(size=(nx, nu)),
+        0.1 * rng.normal(size=(ny, nx)),
+        0.1 * rng.normal(size=(nnx, nx)),
+        0.5 * rng.normal(size=(nnx, nu)),
+        0.5 * rng.normal(size=(nx, nnx)),
+        np.zeros(nnx),
+        np.zeros(nx),
+        0.5 * rng.normal(size=(nny, nx)),
+        0.5 * rng.normal(size=(ny, nny)),
+        np.zeros(nny),
+        np.zeros(ny),
+    ]
 
     def rmse(a, b):
         return float(np.sqrt(np.mean((np.ravel(a) - np.ravel(b)) ** 2)))

@@ -26,7 +26,7 @@ import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from benchmarks._common import progress, row, time_call  # noqa: E402
+    from benchmarks._common import progress, row, time_call
 else:
     from ._common import progress, row, time_call
 
@@ -231,9 +231,18 @@ def run(quick: bool = False) -> list[dict]:
     t_np = (time.perf_counter() - t0) / n_sub * n_cfg
     agree_np = float(np.max(np.abs(e_np - e_ours[sub])))
     rows.append(
-        row(f"sweep {n_cfg} configs x {n_steps} steps: vmap+scan vs numpy loop", ours_rate, work / t_np, unit,
+        row(
+            f"sweep {n_cfg} configs x {n_steps} steps: vmap+scan vs numpy loop",
+            ours_rate,
+            work / t_np,
+            unit,
             note=f"numpy timed on {n_sub} configs, scaled x{n_cfg // n_sub}; max |e_mean diff| {agree_np:.1e} mm",
-            ours_s=t_ours, baseline_s=t_np, baseline_extrapolated=True, n_configs=n_cfg, n_steps=n_steps)
+            ours_s=t_ours,
+            baseline_s=t_np,
+            baseline_extrapolated=True,
+            n_configs=n_cfg,
+            n_steps=n_steps,
+        )
     )
 
     progress("control: numba (all configs)")
@@ -249,9 +258,17 @@ def run(quick: bool = False) -> list[dict]:
     t_nb = time_call(numba_all, repeat=2 if quick else 3)["best_s"]
     agree_nb = float(np.max(np.abs(out["e"] - e_ours)))
     rows.append(
-        row(f"sweep {n_cfg} configs x {n_steps} steps: vmap+scan vs numba", ours_rate, work / t_nb, unit,
-            note=f"numba single-threaded, all configs; max |e_mean diff| {agree_nb:.1e} mm", ours_s=t_ours, baseline_s=t_nb,
-            n_configs=n_cfg, n_steps=n_steps)
+        row(
+            f"sweep {n_cfg} configs x {n_steps} steps: vmap+scan vs numba",
+            ours_rate,
+            work / t_nb,
+            unit,
+            note=f"numba single-threaded, all configs; max |e_mean diff| {agree_nb:.1e} mm",
+            ours_s=t_ours,
+            baseline_s=t_nb,
+            n_configs=n_cfg,
+            n_steps=n_steps,
+        )
     )
 
     try:
@@ -267,10 +284,19 @@ def run(quick: bool = False) -> list[dict]:
     t_ct = (time.perf_counter() - t0) / n_ct * n_cfg
     agree_ct = float(np.max(np.abs(e_ct - e_ours[sub_ct])))
     rows.append(
-        row(f"sweep {n_cfg} configs x {n_steps} steps: vmap+scan vs python-control nlsys", ours_rate, work / t_ct, unit,
+        row(
+            f"sweep {n_cfg} configs x {n_steps} steps: vmap+scan vs python-control nlsys",
+            ours_rate,
+            work / t_ct,
+            unit,
             note=f"discrete nlsys with a Python update callback (no hysteresis block in python-control); timed on {n_ct} configs, "
             f"scaled x{n_cfg // n_ct}; max |e_mean diff| {agree_ct:.1e} mm",
-            ours_s=t_ours, baseline_s=t_ct, baseline_extrapolated=True, n_configs=n_cfg, n_steps=n_steps)
+            ours_s=t_ours,
+            baseline_s=t_ct,
+            baseline_extrapolated=True,
+            n_configs=n_cfg,
+            n_steps=n_steps,
+        )
     )
     return rows
 
@@ -278,5 +304,7 @@ def run(quick: bool = False) -> list[dict]:
 if __name__ == "__main__":
     quick = "--quick" in sys.argv
     for r in run(quick):
-        print(f"{r['name']}: ours {r['ours']:.3g} vs {r['baseline'] if r['baseline'] is None else format(r['baseline'], '.3g')} "
-              f"{r['unit']} -> ratio {r['ratio'] if r['ratio'] is None else format(r['ratio'], '.3g')}  ({r.get('note', '')})")
+        print(
+            f"{r['name']}: ours {r['ours']:.3g} vs {r['baseline'] if r['baseline'] is None else format(r['baseline'], '.3g')} "
+            f"{r['unit']} -> ratio {r['ratio'] if r['ratio'] is None else format(r['ratio'], '.3g')}  ({r.get('note', '')})"
+        )

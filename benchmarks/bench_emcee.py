@@ -64,7 +64,7 @@ def _prior_np(prior, x):
 class NumpyLogProb:
     """Per-walker numpy implementation of the same log-posterior (loop over time)."""
 
-    POSITIVE = {"thermal.k1", "hysteresis.gain", "hysteresis.v", "hysteresis.w", "noise.sigma"}
+    POSITIVE: frozenset = frozenset({"thermal.k1", "hysteresis.gain", "hysteresis.v", "hysteresis.w", "noise.sigma"})
 
     def __init__(self, post, model, u, y, dt):
         self.post, self.u, self.y, self.dt = post, np.asarray(u, float), np.asarray(y, float), float(dt)
@@ -83,7 +83,7 @@ class NumpyLogProb:
 
     def __call__(self, theta):
         vals, lp = {}, 0.0
-        for name, i, size, shape in self.layout:
+        for name, i, size, _shape in self.layout:
             raw = theta[i : i + size]
             if name in self.POSITIVE:
                 vals[name] = _softplus(raw)
@@ -143,7 +143,9 @@ def run(quick: bool = False) -> list[dict]:
 
     steps_ours = 60 if quick else 300
     steps_base = 2 if quick else 6
-    progress(f"emcee: {post.ndim} parameters, {N_WALKERS} walkers, {len(rec)} samples; ours {steps_ours} steps, numpy {steps_base} steps")
+    progress(
+        f"emcee: {post.ndim} parameters, {N_WALKERS} walkers, {len(rec)} samples; ours {steps_ours} steps, numpy {steps_base} steps"
+    )
 
     s_ours = emcee.EnsembleSampler(N_WALKERS, post.ndim, post, vectorize=True)
     t0 = time.perf_counter()
@@ -171,11 +173,24 @@ def run(quick: bool = False) -> list[dict]:
     t_loop = (time.perf_counter() - t0) / n_loop
     size = {"n_params": post.ndim, "n_walkers": N_WALKERS, "n_samples": len(rec), "n_operators": truth.hysteresis.n_operators}
     return [
-        row("emcee run, full cascade (30 params, 64 walkers, 1761 samples)", rate_ours, rate_base, "evals/s",
+        row(
+            "emcee run, full cascade (30 params, 64 walkers, 1761 samples)",
+            rate_ours,
+            rate_base,
+            "evals/s",
             note=f"vectorize=True + jit(vmap) vs per-walker numpy loop; {steps_ours} vs {steps_base} steps",
-            seconds_ours=t_ours, seconds_baseline=t_base, **size),
-        row("log-prob only, batch of 64 walkers", N_WALKERS / t_batch, 1.0 / t_loop, "evals/s",
-            note="one jit(vmap) call vs a Python loop of numpy evaluations", **size),
+            seconds_ours=t_ours,
+            seconds_baseline=t_base,
+            **size,
+        ),
+        row(
+            "log-prob only, batch of 64 walkers",
+            N_WALKERS / t_batch,
+            1.0 / t_loop,
+            "evals/s",
+            note="one jit(vmap) call vs a Python loop of numpy evaluations",
+            **size,
+        ),
     ]
 
 

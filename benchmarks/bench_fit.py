@@ -136,9 +136,39 @@ def run(quick: bool = False) -> list[dict]:
         )
 
     return [
-        row("fit (profile k1 + LM), warm vs scipy trf + FD", full_s, sp_s, "s", ratio=sp_s / full_s, note=note(r_full), ours_loss=r_full.loss, baseline_loss=sp_loss, **size),
-        row("fit (profile k1 + LM) incl. JIT compile vs scipy", cold_s, sp_s, "s", ratio=sp_s / cold_s, note=note(r_cold), ours_loss=r_cold.loss, baseline_loss=sp_loss, **size),
-        row("LM only from the same start (warm) vs scipy", warm_s, sp_s, "s", ratio=sp_s / warm_s, note=note(r_warm), ours_loss=r_warm.loss, baseline_loss=sp_loss, **size),
+        row(
+            "fit (profile k1 + LM), warm vs scipy trf + FD",
+            full_s,
+            sp_s,
+            "s",
+            ratio=sp_s / full_s,
+            note=note(r_full),
+            ours_loss=r_full.loss,
+            baseline_loss=sp_loss,
+            **size,
+        ),
+        row(
+            "fit (profile k1 + LM) incl. JIT compile vs scipy",
+            cold_s,
+            sp_s,
+            "s",
+            ratio=sp_s / cold_s,
+            note=note(r_cold),
+            ours_loss=r_cold.loss,
+            baseline_loss=sp_loss,
+            **size,
+        ),
+        row(
+            "LM only from the same start (warm) vs scipy",
+            warm_s,
+            sp_s,
+            "s",
+            ratio=sp_s / warm_s,
+            note=note(r_warm),
+            ours_loss=r_warm.loss,
+            baseline_loss=sp_loss,
+            **size,
+        ),
     ]
 
 

@@ -149,8 +149,19 @@ def run(quick: bool = False) -> list[dict]:
             t = time_calls(fns, repeat=repeat, min_total=mt)
             t_nb, t_scan = t["numba"], t["scan"]
             sz = dict(kernel="bank", n_ops=n, steps=T)
-            rows.append(row(f"bank n={n} T={_fmt_T(T)}: scan vs numba", work / t_scan, work / t_nb, unit,
-                            ours_method="scan", baseline_method="numba", ours_s=t_scan, baseline_s=t_nb, **sz))
+            rows.append(
+                row(
+                    f"bank n={n} T={_fmt_T(T)}: scan vs numba",
+                    work / t_scan,
+                    work / t_nb,
+                    unit,
+                    ours_method="scan",
+                    baseline_method="numba",
+                    ours_s=t_scan,
+                    baseline_s=t_nb,
+                    **sz,
+                )
+            )
             if work <= ASSOC_MAX_WORK:
                 if T <= 100_000:
                     got = np.asarray(assoc(ju, jr, ja, jy0))
@@ -158,12 +169,33 @@ def run(quick: bool = False) -> list[dict]:
                         raise RuntimeError(f"assoc and numba disagree (n={n}, T={T})")
                     del got
                 t_as = t["assoc"]
-                rows.append(row(f"bank n={n} T={_fmt_T(T)}: assoc vs numba", work / t_as, work / t_nb, unit,
-                                ours_method="assoc", baseline_method="numba", ours_s=t_as, baseline_s=t_nb, **sz))
+                rows.append(
+                    row(
+                        f"bank n={n} T={_fmt_T(T)}: assoc vs numba",
+                        work / t_as,
+                        work / t_nb,
+                        unit,
+                        ours_method="assoc",
+                        baseline_method="numba",
+                        ours_s=t_as,
+                        baseline_s=t_nb,
+                        **sz,
+                    )
+                )
             else:
-                rows.append(row(f"bank n={n} T={_fmt_T(T)}: assoc vs numba", None, work / t_nb, unit,
-                                note=f"not run: T*n = {work:.0e} > {ASSOC_MAX_WORK:.0e} (parallel scan buffers need several GB)",
-                                ours_method="assoc", baseline_method="numba", baseline_s=t_nb, **sz))
+                rows.append(
+                    row(
+                        f"bank n={n} T={_fmt_T(T)}: assoc vs numba",
+                        None,
+                        work / t_nb,
+                        unit,
+                        note=f"not run: T*n = {work:.0e} > {ASSOC_MAX_WORK:.0e} (parallel scan buffers need several GB)",
+                        ours_method="assoc",
+                        baseline_method="numba",
+                        baseline_s=t_nb,
+                        **sz,
+                    )
+                )
             del ref
             if T <= np_cap:
                 t_np = time_call(lambda: numpy_bank(u, r, a, y0), repeat=1 if T >= 100_000 else repeat)["best_s"]
@@ -173,9 +205,21 @@ def run(quick: bool = False) -> list[dict]:
                 rate, T_meas = numpy_rate[n]
                 t_np_row = work / rate
                 note = f"numpy rate measured at T={_fmt_T(T_meas)} (linear in T), not run at T={_fmt_T(T)}"
-            rows.append(row(f"bank n={n} T={_fmt_T(T)}: scan vs numpy loop", work / t_scan, work / t_np_row, unit,
-                            note=note, ours_method="scan", baseline_method="numpy", ours_s=t_scan, baseline_s=t_np_row,
-                            baseline_extrapolated=bool(note), **sz))
+            rows.append(
+                row(
+                    f"bank n={n} T={_fmt_T(T)}: scan vs numpy loop",
+                    work / t_scan,
+                    work / t_np_row,
+                    unit,
+                    note=note,
+                    ours_method="scan",
+                    baseline_method="numpy",
+                    ours_s=t_scan,
+                    baseline_s=t_np_row,
+                    baseline_extrapolated=bool(note),
+                    **sz,
+                )
+            )
 
     # weighted sum (a PI model's forward pass) and a batch of records, at one record length
     T = 10_000 if quick else 100_000
@@ -191,14 +235,43 @@ def run(quick: bool = False) -> list[dict]:
         got = np.asarray(weighted(ju, jr, ja, jw, jy0))
         if np.max(np.abs(got - ref)) > 1e-9 * max(1.0, np.max(np.abs(ref))):
             raise RuntimeError(f"play_weighted and numba disagree (n={n})")
-        t = time_calls({"numba": lambda: nb_weighted(u, r, a, w, y0), "fused": lambda: weighted(ju, jr, ja, jw, jy0),
-                        "bank": lambda: scan(ju, jr, ja, jy0) @ jw}, repeat=repeat, min_total=0.3)
+        t = time_calls(
+            {
+                "numba": lambda: nb_weighted(u, r, a, w, y0),
+                "fused": lambda: weighted(ju, jr, ja, jw, jy0),
+                "bank": lambda: scan(ju, jr, ja, jy0) @ jw,
+            },
+            repeat=repeat,
+            min_total=0.3,
+        )
         t_nb, t_w, t_bank = t["numba"], t["fused"], t["bank"]
         sz = dict(kernel="weighted", n_ops=n, steps=T)
-        rows.append(row(f"weighted n={n} T={_fmt_T(T)}: fused scan vs numba", work / t_w, work / t_nb, unit,
-                        ours_method="play_weighted", baseline_method="numba", ours_s=t_w, baseline_s=t_nb, **sz))
-        rows.append(row(f"weighted n={n} T={_fmt_T(T)}: fused scan vs scan-then-matmul", work / t_w, work / t_bank, unit,
-                        ours_method="play_weighted", baseline_method="play_scan @ w", ours_s=t_w, baseline_s=t_bank, **sz))
+        rows.append(
+            row(
+                f"weighted n={n} T={_fmt_T(T)}: fused scan vs numba",
+                work / t_w,
+                work / t_nb,
+                unit,
+                ours_method="play_weighted",
+                baseline_method="numba",
+                ours_s=t_w,
+                baseline_s=t_nb,
+                **sz,
+            )
+        )
+        rows.append(
+            row(
+                f"weighted n={n} T={_fmt_T(T)}: fused scan vs scan-then-matmul",
+                work / t_w,
+                work / t_bank,
+                unit,
+                ours_method="play_weighted",
+                baseline_method="play_scan @ w",
+                ours_s=t_w,
+                baseline_s=t_bank,
+                **sz,
+            )
+        )
 
         Tb = T // BATCH * (4 if not quick else 1)
         U = np.stack([_signal(rng, Tb) for _ in range(BATCH)])
@@ -207,11 +280,26 @@ def run(quick: bool = False) -> list[dict]:
         got = np.asarray(batch(jU, jr, ja, jw, jy0))
         if np.max(np.abs(got - nb_batch(U, r, a, w, y0))) > 1e-9 * max(1.0, np.max(np.abs(got))):
             raise RuntimeError(f"batched play_weighted and numba disagree (n={n})")
-        t = time_calls({"numba": lambda: nb_batch(U, r, a, w, y0), "vmap": lambda: batch(jU, jr, ja, jw, jy0)}, repeat=repeat, min_total=0.3)
+        t = time_calls(
+            {"numba": lambda: nb_batch(U, r, a, w, y0), "vmap": lambda: batch(jU, jr, ja, jw, jy0)}, repeat=repeat, min_total=0.3
+        )
         t_nbb, t_b = t["numba"], t["vmap"]
-        rows.append(row(f"batch {BATCH}x{_fmt_T(Tb)} n={n}: vmap fused scan vs numba", work_b / t_b, work_b / t_nbb, unit,
-                        ours_method="vmap(play_weighted)", baseline_method="numba loop over records",
-                        ours_s=t_b, baseline_s=t_nbb, kernel="batch", n_ops=n, steps=Tb, batch=BATCH))
+        rows.append(
+            row(
+                f"batch {BATCH}x{_fmt_T(Tb)} n={n}: vmap fused scan vs numba",
+                work_b / t_b,
+                work_b / t_nbb,
+                unit,
+                ours_method="vmap(play_weighted)",
+                baseline_method="numba loop over records",
+                ours_s=t_b,
+                baseline_s=t_nbb,
+                kernel="batch",
+                n_ops=n,
+                steps=Tb,
+                batch=BATCH,
+            )
+        )
     return rows
 
 

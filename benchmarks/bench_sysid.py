@@ -48,7 +48,9 @@ def ensure_venv(timeout=900):
         return py, None
     progress(f"sysid: creating {VENV.relative_to(ROOT)} and installing {SYSID_SPEC} (one-off, a few minutes)")
     try:
-        subprocess.run([sys.executable, "-m", "venv", "--clear", str(VENV)], check=True, capture_output=True, text=True, timeout=120)
+        subprocess.run(
+            [sys.executable, "-m", "venv", "--clear", str(VENV)], check=True, capture_output=True, text=True, timeout=120
+        )
         pip = subprocess.run([str(py), "-m", "pip", "install", "-q", SYSID_SPEC], capture_output=True, text=True, timeout=timeout)
     except (subprocess.SubprocessError, OSError) as exc:
         return None, f"venv creation failed: {_tail(exc)}"
@@ -85,18 +87,37 @@ def run(quick: bool = False) -> list[dict]:
     split = "train main_loop.csv (1761 samples), held out minor_loop.csv (1441)"
     note_ours = f"ours: Cascade, {ours['n_steps']} LM steps, warm re-fit {ours['fit_warm_s']:.2f} s; {split}"
     if base is None:
-        for what, unit, val in (("fit time (cold, compile incl.)", "s", ours["fit_s"]), ("held-out RMSE", "mm", ours["test_rmse"])):
+        for what, unit, val in (
+            ("fit time (cold, compile incl.)", "s", ours["fit_s"]),
+            ("held-out RMSE", "mm", ours["test_rmse"]),
+        ):
             rows.append(row(f"identification vs jax-sysid: {what}", val, None, unit, note=f"jax-sysid not run: {why}"))
         return rows
     for kind in ("nonlinear", "linear"):
         b = base[kind]
         label = "jax-sysid residual RNN (nx=5)" if kind == "nonlinear" else "jax-sysid linear SS (nx=5)"
         extra = f"{label}, jax {base['jax']}; {note_ours}"
-        rows.append(row(f"fit time (cold, compile incl.): ours vs {label}", ours["fit_s"], b["fit_s"], "s",
-                        ratio=b["fit_s"] / ours["fit_s"], note=extra, ours_warm_s=ours["fit_warm_s"]))
-        rows.append(row(f"held-out RMSE: ours vs {label}", ours["test_rmse"], b["test_rmse"], "mm",
-                        ratio=b["test_rmse"] / ours["test_rmse"],
-                        note=f"jax-sysid x0 = training x0 (both records start at rest); with x0 learned from the held-out "
-                             f"outputs (its README recipe): {b['test_rmse_learned_x0']:.4f} mm. Train RMSE ours "
-                             f"{ours['train_rmse']:.4f}, jax-sysid {b['train_rmse']:.4f} mm"))
+        rows.append(
+            row(
+                f"fit time (cold, compile incl.): ours vs {label}",
+                ours["fit_s"],
+                b["fit_s"],
+                "s",
+                ratio=b["fit_s"] / ours["fit_s"],
+                note=extra,
+                ours_warm_s=ours["fit_warm_s"],
+            )
+        )
+        rows.append(
+            row(
+                f"held-out RMSE: ours vs {label}",
+                ours["test_rmse"],
+                b["test_rmse"],
+                "mm",
+                ratio=b["test_rmse"] / ours["test_rmse"],
+                note=f"jax-sysid x0 = training x0 (both records start at rest); with x0 learned from the held-out "
+                f"outputs (its README recipe): {b['test_rmse_learned_x0']:.4f} mm. Train RMSE ours "
+                f"{ours['train_rmse']:.4f}, jax-sysid {b['train_rmse']:.4f} mm",
+            )
+        )
     return rows

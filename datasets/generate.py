@@ -55,7 +55,7 @@ def _ramp(points, dt):
 def drives():
     """The bundled input records: name -> (time, voltage, description)."""
     main = [(0, 0), (20, 0)]
-    for c in range(2):  # two slow full cycles 0 -> 7.4 -> 0 V
+    for _ in range(2):  # two slow full cycles 0 -> 7.4 -> 0 V
         t0 = main[-1][0]
         main += [(t0 + 200, U_MAX), (t0 + 400, 0), (t0 + 430, 0)]
     minor = [(0, 0), (20, 0), (220, U_MAX), (320, 3.5), (390, 6.0), (480, 2.0), (540, 5.0), (690, 0.0), (720, 0.0)]
@@ -66,7 +66,10 @@ def drives():
     return {
         "main_loop": (*_ramp(main, DT), "two slow triangular cycles 0 -> 7.4 -> 0 V (major loop, fig. 8 main loop)"),
         "minor_loop": (*_ramp(minor, DT), "a major rise to 7.4 V then nested reversals at 3.5, 6.0, 2.0, 5.0 V (minor loops)"),
-        "steps": (*_ramp(steps, DT), "voltage steps 0 -> 2.5 -> 5 -> 7.4 -> 4 -> 6 -> 1.5 -> 0 V, 150 s holds (thermal response)"),
+        "steps": (
+            *_ramp(steps, DT),
+            "voltage steps 0 -> 2.5 -> 5 -> 7.4 -> 4 -> 6 -> 1.5 -> 0 V, 150 s holds (thermal response)",
+        ),
     }
 
 

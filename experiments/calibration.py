@@ -45,14 +45,23 @@ def _interval_hits(summary, names, truth):
     out = {}
     for name in names:
         p = summary["parameters"][name]
-        out[name] = {"q05": p["q05"], "q95": p["q95"], "q025": p["q025"], "q975": p["q975"], "mean": p["mean"],
-                     "hit90": bool(p["q05"] <= truth[name] <= p["q95"]), "hit95": bool(p["q025"] <= truth[name] <= p["q975"])}
+        out[name] = {
+            "q05": p["q05"],
+            "q95": p["q95"],
+            "q025": p["q025"],
+            "q975": p["q975"],
+            "mean": p["mean"],
+            "hit90": bool(p["q05"] <= truth[name] <= p["q95"]),
+            "hit95": bool(p["q025"] <= truth[name] <= p["q975"]),
+        }
     return out
 
 
 def _coverage(reps, names):
-    return ({n: float(np.mean([r[n]["hit90"] for r in reps])) for n in names},
-            {n: float(np.mean([r[n]["hit95"] for r in reps])) for n in names})
+    return (
+        {n: float(np.mean([r[n]["hit90"] for r in reps])) for n in names},
+        {n: float(np.mean([r[n]["hit95"] for r in reps])) for n in names},
+    )
 
 
 def run_joule(n_rep=100, n_steps=1500, seed=0, progress=True, n_walkers=16):
@@ -71,14 +80,25 @@ def run_joule(n_rep=100, n_steps=1500, seed=0, progress=True, n_walkers=16):
         if progress:
             print(f"joule {r + 1}/{n_rep}", file=sys.stderr, end="\r")
     c90, c95 = _coverage(reps, names)
-    return {"study": "joule", "n_rep": n_rep, "n_steps": n_steps, "n_walkers": n_walkers, "truth": truth,
-            "coverage90": c90, "coverage95": c95, "n_short_chains": short, "replicates": reps}
+    return {
+        "study": "joule",
+        "n_rep": n_rep,
+        "n_steps": n_steps,
+        "n_walkers": n_walkers,
+        "truth": truth,
+        "coverage90": c90,
+        "coverage95": c95,
+        "n_short_chains": short,
+        "replicates": reps,
+    }
 
 
 def cascade_truth():
     m = sj.Cascade.from_range(7.4, n_sym=4, n_alpha=2, n_asym=2, poly_order=2)
     gains = np.array([0.3, 1.2, 0.6, 0.3, 0.15, 0.3, 0.1, 0.2, 0.05, 0.1, 0.25])
-    return sj.Cascade(thermal=sj.JouleThermal(k1=jnp.asarray(K1), k2=jnp.asarray(K2)), hysteresis=m.hysteresis.with_linear_weights(gains))
+    return sj.Cascade(
+        thermal=sj.JouleThermal(k1=jnp.asarray(K1), k2=jnp.asarray(K2)), hysteresis=m.hysteresis.with_linear_weights(gains)
+    )
 
 
 def cascade_record(rng, n=400, dt=0.5, sigma=0.01):
@@ -110,8 +130,17 @@ def run_cascade(n_rep=30, n_steps=600, seed=0, progress=True, n_walkers=12):
         if progress:
             print(f"cascade {r + 1}/{n_rep}", file=sys.stderr, end="\r")
     c90, c95 = _coverage(reps, names)
-    return {"study": "cascade", "n_rep": n_rep, "n_steps": n_steps, "n_walkers": n_walkers, "truth": truth,
-            "coverage90": c90, "coverage95": c95, "n_short_chains": short, "replicates": reps}
+    return {
+        "study": "cascade",
+        "n_rep": n_rep,
+        "n_steps": n_steps,
+        "n_walkers": n_walkers,
+        "truth": truth,
+        "coverage90": c90,
+        "coverage95": c95,
+        "n_short_chains": short,
+        "replicates": reps,
+    }
 
 
 def figure(results, path):
@@ -131,12 +160,23 @@ def figure(results, path):
         hit = np.array([r[name]["hit90"] for r in reps])
         for ok, col in ((True, "C0"), (False, "C3")):
             m = hit == ok
-            ax.errorbar(x[m], mid[m], yerr=[mid[m] - lo[m], hi[m] - mid[m]], fmt=".", ms=3, lw=0.8, color=col,
-                        label="covers truth" if ok else "misses truth")
+            ax.errorbar(
+                x[m],
+                mid[m],
+                yerr=[mid[m] - lo[m], hi[m] - mid[m]],
+                fmt=".",
+                ms=3,
+                lw=0.8,
+                color=col,
+                label="covers truth" if ok else "misses truth",
+            )
         ax.axhline(res["truth"][name], color="k", lw=0.8, label="truth")
         ax.set_ylabel(name)
-        ax.set_title(f"{res['study']}: 90 % intervals of {name}, coverage {100 * res['coverage90'][name]:.0f} % "
-                     f"of {res['n_rep']} replicates (95 % intervals: {100 * res['coverage95'][name]:.0f} %)", fontsize=9)
+        ax.set_title(
+            f"{res['study']}: 90 % intervals of {name}, coverage {100 * res['coverage90'][name]:.0f} % "
+            f"of {res['n_rep']} replicates (95 % intervals: {100 * res['coverage95'][name]:.0f} %)",
+            fontsize=9,
+        )
         ax.legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("replicate")
     fig.tight_layout()
@@ -163,8 +203,10 @@ def main(argv=None):
             results.append(run_cascade(args.cascade_reps, seed=args.seed))
     elapsed = time.time() - t0
     for res in results:
-        print(f"{res['study']}: {res['n_rep']} replicates, {res['n_steps']} steps x {res['n_walkers']} walkers; "
-              f"90 % coverage {res['coverage90']}; 95 % coverage {res['coverage95']}; chains flagged short: {res['n_short_chains']}")
+        print(
+            f"{res['study']}: {res['n_rep']} replicates, {res['n_steps']} steps x {res['n_walkers']} walkers; "
+            f"90 % coverage {res['coverage90']}; 95 % coverage {res['coverage95']}; chains flagged short: {res['n_short_chains']}"
+        )
     print(f"elapsed {elapsed:.0f} s")
     sj.atomic_write_json(out / "calibration.json", {"elapsed_s": elapsed, "command": " ".join(sys.argv), "results": results})
     figure(results, out / "calibration.png")

@@ -19,10 +19,10 @@ import matplotlib
 import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-import smafl_jax as sj  # noqa: E402
-from smafl_jax._control import PAPER_GAINS, PID, ClosedLoop, IICompensator, simulate_closed_loop, sine_reference, step_reference  # noqa: E402
+import smafl_jax as sj
+from smafl_jax._control import PAPER_GAINS, PID, ClosedLoop, IICompensator, simulate_closed_loop, sine_reference, step_reference
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = {("sine", "composite"): 0.0027, ("step", "composite"): 0.0004, ("sine", "pid"): 0.0030, ("step", "pid"): 0.0009}
@@ -66,8 +66,17 @@ def main(argv=None):
             for ctrl in ("pid", "composite"):
                 comp = IICompensator(model, g["K"]) if ctrl == "composite" else None
                 row = {"scenario": sname, "reference": rname, "controller": ctrl}
-                for window, start in (("full", 0.0), ("settled", args.settle if rname != "slow sine (omega/20)" else 2 * np.pi / slow_w)):
-                    loop = ClosedLoop(plant=plant, pid=PID(g["kp"], g["ki"], g["kd"]), reference=jnp.asarray(ref), compensator=comp, eval_start=jnp.asarray(start))
+                for window, start in (
+                    ("full", 0.0),
+                    ("settled", args.settle if rname != "slow sine (omega/20)" else 2 * np.pi / slow_w),
+                ):
+                    loop = ClosedLoop(
+                        plant=plant,
+                        pid=PID(g["kp"], g["ki"], g["kd"]),
+                        reference=jnp.asarray(ref),
+                        compensator=comp,
+                        eval_start=jnp.asarray(start),
+                    )
                     m, tr = simulate_closed_loop(loop, dt)
                     row[f"e_mean_{window}_mm"] = float(m["e_mean_mm"])
                     row[f"saturated_{window}"] = float(m["saturated_fraction"])
@@ -77,7 +86,10 @@ def main(argv=None):
                         trajs[(sname, rname, ctrl)] = {k: np.asarray(v) for k, v in tr.items()}
                 row["paper_e_mean_mm"] = PAPER.get((rname, ctrl))
                 rows.append(row)
-                print(f"{sname[:2]} {rname:22s} {ctrl:9s} e_mean {row['e_mean_full_mm']:.4g} (settled {row['e_mean_settled_mm']:.4g}) sat {row['saturated_full']:.2f}", file=sys.stderr)
+                print(
+                    f"{sname[:2]} {rname:22s} {ctrl:9s} e_mean {row['e_mean_full_mm']:.4g} (settled {row['e_mean_settled_mm']:.4g}) sat {row['saturated_full']:.2f}",
+                    file=sys.stderr,
+                )
     assumptions = [
         f"sample time dt = {dt} s (paper: not given); record length {T} s for sine/step (paper: not given), "
         f"slow sine: 2 periods; 'settled' = samples from t = {args.settle} s (slow sine: from the 2nd period)",
@@ -96,14 +108,20 @@ def main(argv=None):
         lines.append(
             f"| {r['scenario']} | {r['reference']} | {r['controller']} | {r['e_mean_full_mm']:.4g} | {r['e_mean_settled_mm']:.4g} | {p} | {r['rmse_mm']:.4g} | {r['saturated_full']:.3f} |"
         )
-    text = "# Paper section 4.2 in simulation\n\nAssumptions:\n" + "".join(f"- {a}\n" for a in assumptions) + "\n" + "\n".join(lines) + "\n"
+    text = (
+        "# Paper section 4.2 in simulation\n\nAssumptions:\n"
+        + "".join(f"- {a}\n" for a in assumptions)
+        + "\n"
+        + "\n".join(lines)
+        + "\n"
+    )
     sj.atomic_write_text(out / "table.md", text)
     sj.atomic_write_json(out / "table.json", {"rows": rows, "assumptions": assumptions})
     print(text)
     # figs 14-17 analogues (scenario A): tracking and error, sine and step
     for i, rname in enumerate(("sine", "step")):
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-        key = list(scenarios)[0]
+        key = next(iter(scenarios))
         a1.plot(trajs[(key, rname, "pid")]["time_s"], refs[rname], "k--", label="reference")
         for ctrl in ("pid", "composite"):
             tr = trajs[(key, rname, ctrl)]

@@ -66,15 +66,23 @@ def main(argv=None):
     with ProcessPoolExecutor(a.jobs) if a.jobs > 1 else _Serial() as ex:
         for r in ex.map(run_one, jobs):
             rows.append(r)
-            print(f"{r['true']:>20s} seed {r['seed']}: selected {r['selected'] or ['none']}  held-out RMSE "
-                  f"{r['base_heldout_rmse']:.4f} -> {r['extended_heldout_rmse']:.4f} mm ({r['seconds']:.0f} s)", file=sys.stderr, flush=True)
+            print(
+                f"{r['true']:>20s} seed {r['seed']}: selected {r['selected'] or ['none']}  held-out RMSE "
+                f"{r['base_heldout_rmse']:.4f} -> {r['extended_heldout_rmse']:.4f} mm ({r['seconds']:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
     names = ["none"] + list(EFFECT_NAMES)
     table = {t: {c: 0 for c in names + ["other-combination"]} for t in names}
     for r in rows:
         sel = r["selected"]
         col = "none" if not sel else (sel[0] if len(sel) == 1 else ("other-combination" if r["true"] not in sel else r["true"]))
         table[r["true"]][col] += 1
-    correct = sum(1 for r in rows if (r["true"] == "none" and not r["selected"]) or (r["true"] != "none" and r["selected"][:1] == [r["true"]]))
+    correct = sum(
+        1
+        for r in rows
+        if (r["true"] == "none" and not r["selected"]) or (r["true"] != "none" and r["selected"][:1] == [r["true"]])
+    )
     reduced = [r for r in rows if r["true"] != "none"]
     cut = sum(1 for r in reduced if r["extended_heldout_rmse"] < 0.95 * r["base_heldout_rmse"])
     md = ["| true \\ selected | " + " | ".join(names) + " | combo |", "|" + "---|" * (len(names) + 2)]

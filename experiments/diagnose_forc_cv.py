@@ -32,9 +32,16 @@ def main(argv=None):
     for r in (0, 1, 2):
         print(f"== fold: label % 3 == {r} held out", file=sys.stderr)
         res, base, ext, split = diagnose(rec, holdout_residue=r, verbose=True)
-        row = {"holdout_residue": r, "heldout_branches": split.test_labels, "selected": res["selected"],
-               "base_heldout_e_r": res["base"]["heldout"]["e_r_percent"], "selected_heldout_e_r": res["extended"]["heldout"]["e_r_percent"],
-               "selected_heldout_rmse": res["extended"]["heldout_rmse"], "parameters": res["extended"]["parameters"], "fixed": {}}
+        row = {
+            "holdout_residue": r,
+            "heldout_branches": split.test_labels,
+            "selected": res["selected"],
+            "base_heldout_e_r": res["base"]["heldout"]["e_r_percent"],
+            "selected_heldout_e_r": res["extended"]["heldout"]["e_r_percent"],
+            "selected_heldout_rmse": res["extended"]["heldout_rmse"],
+            "parameters": res["extended"]["parameters"],
+            "fixed": {},
+        }
         from smafl_jax._effects import ExtendedModel
 
         b = ExtendedModel(base, ())
@@ -46,12 +53,18 @@ def main(argv=None):
             _, te = _metrics_pair(m, split)
             row["fixed"][">".join(seq)] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"]}
         rows.append(row)
-        print(f"fold {r}: selected {res['selected']} e_r {row['base_heldout_e_r']:.2f} -> {row['selected_heldout_e_r']:.2f} %; fixed "
-              + ", ".join(f"{k} {v['heldout_e_r']:.2f}" for k, v in row["fixed"].items()), file=sys.stderr, flush=True)
+        print(
+            f"fold {r}: selected {res['selected']} e_r {row['base_heldout_e_r']:.2f} -> {row['selected_heldout_e_r']:.2f} %; fixed "
+            + ", ".join(f"{k} {v['heldout_e_r']:.2f}" for k, v in row["fixed"].items()),
+            file=sys.stderr,
+            flush=True,
+        )
     atomic_write_json(a.out, rows)
     for row in rows:
-        print(f"| {row['holdout_residue']} | {row['heldout_branches']} | {', '.join(row['selected']) or 'none'} | {row['base_heldout_e_r']:.2f} -> "
-              f"{row['selected_heldout_e_r']:.2f} | " + " | ".join(f"{v['heldout_e_r']:.2f}" for v in row["fixed"].values()) + " |")
+        print(
+            f"| {row['holdout_residue']} | {row['heldout_branches']} | {', '.join(row['selected']) or 'none'} | {row['base_heldout_e_r']:.2f} -> "
+            f"{row['selected_heldout_e_r']:.2f} | " + " | ".join(f"{v['heldout_e_r']:.2f}" for v in row["fixed"].values()) + " |"
+        )
 
 
 if __name__ == "__main__":

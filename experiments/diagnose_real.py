@@ -45,16 +45,31 @@ def main(argv=None):
         d = out / path.stem
         d.mkdir(exist_ok=True)
         write_diagnosis(d, rec, res, base, ext, split)
-        rows.append({"record": name, "base": res["base"]["rule"], "split": res["split"]["rule"], "selected": res["selected"],
-                     "evidence_top": res["evidence_ranking"][:3],
-                     "heldout_rmse_before": res["base"]["heldout_rmse"], "heldout_rmse_after": res["extended"]["heldout_rmse"],
-                     "heldout_e_r_before": res["base"]["heldout"]["e_r_percent"], "heldout_e_r_after": res["extended"]["heldout"]["e_r_percent"],
-                     "parameters": res["extended"]["parameters"], "strongest_remaining_correlate": res["strongest_remaining_correlate"]})
-    md = ["| record | selected | held-out RMSE before -> after | held-out e_r % before -> after | remaining correlate |", "|---|---|---|---|---|"]
+        rows.append(
+            {
+                "record": name,
+                "base": res["base"]["rule"],
+                "split": res["split"]["rule"],
+                "selected": res["selected"],
+                "evidence_top": res["evidence_ranking"][:3],
+                "heldout_rmse_before": res["base"]["heldout_rmse"],
+                "heldout_rmse_after": res["extended"]["heldout_rmse"],
+                "heldout_e_r_before": res["base"]["heldout"]["e_r_percent"],
+                "heldout_e_r_after": res["extended"]["heldout"]["e_r_percent"],
+                "parameters": res["extended"]["parameters"],
+                "strongest_remaining_correlate": res["strongest_remaining_correlate"],
+            }
+        )
+    md = [
+        "| record | selected | held-out RMSE before -> after | held-out e_r % before -> after | remaining correlate |",
+        "|---|---|---|---|---|",
+    ]
     for r in rows:
         s = r["strongest_remaining_correlate"] or {}
-        md.append(f"| {r['record']} | {', '.join(r['selected']) or 'none'} | {r['heldout_rmse_before']:.4g} -> {r['heldout_rmse_after']:.4g} | "
-                  f"{r['heldout_e_r_before']:.2f} -> {r['heldout_e_r_after']:.2f} | {s.get('signal')} ({s.get('corr', float('nan')):+.2f}) |")
+        md.append(
+            f"| {r['record']} | {', '.join(r['selected']) or 'none'} | {r['heldout_rmse_before']:.4g} -> {r['heldout_rmse_after']:.4g} | "
+            f"{r['heldout_e_r_before']:.2f} -> {r['heldout_e_r_after']:.2f} | {s.get('signal')} ({s.get('corr', float('nan')):+.2f}) |"
+        )
     atomic_write_json(out / "summary.json", rows)
     atomic_write_text(out / "summary.md", "\n".join(md) + "\n")
     print("\n".join(md))

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _section import run_section  # noqa: E402
+from _section import run_section
 
 if __name__ == "__main__":
     raise SystemExit(run_section("fig11_12_joule", "section_joule", __doc__))

@@ -17,10 +17,24 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import smafl_jax as sj  # noqa: E402
-from smafl_jax._report_fit import MODELS, fit_record, write_fit_outputs  # noqa: E402
+import smafl_jax as sj
+from smafl_jax._report_fit import MODELS, fit_record, write_fit_outputs
 
-COLUMNS = ["file", "n", "model", "split", "train_rmse", "train_e_r_percent", "val_rmse", "val_e_r_percent", "val_max_abs_error", "k1", "converged", "seconds", "status"]
+COLUMNS = [
+    "file",
+    "n",
+    "model",
+    "split",
+    "train_rmse",
+    "train_e_r_percent",
+    "val_rmse",
+    "val_e_r_percent",
+    "val_max_abs_error",
+    "k1",
+    "converged",
+    "seconds",
+    "status",
+]
 
 
 def main(argv=None):
@@ -67,7 +81,12 @@ def main(argv=None):
             row["status"] = f"failed: {exc}"
         rows.append(row)
         print(f"[{i + 1}/{len(files)}] {path.name}: {row['status']} ({time.perf_counter() - t0:.0f} s elapsed)", file=sys.stderr)
-    sj.atomic_write_text(out / "summary.csv", ",".join(COLUMNS) + "\n" + "".join(",".join(f'"{r[c]}"' if "," in str(r[c]) else str(r[c]) for c in COLUMNS) + "\n" for r in rows))
+    sj.atomic_write_text(
+        out / "summary.csv",
+        ",".join(COLUMNS)
+        + "\n"
+        + "".join(",".join(f'"{r[c]}"' if "," in str(r[c]) else str(r[c]) for c in COLUMNS) + "\n" for r in rows),
+    )
     md = ["| " + " | ".join(COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
     md += ["| " + " | ".join(str(r[c]).replace("|", "/") for c in COLUMNS) + " |" for r in rows]
     sj.atomic_write_text(out / "summary.md", "\n".join(md) + "\n")

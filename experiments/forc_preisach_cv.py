@@ -82,11 +82,23 @@ def lobo(rec, u_min, u_max, verbose=True):
         pm, info = cv_fit_preisach([s for j, s in enumerate(segs) if j != i], u_min, u_max)
         p = np.asarray(pm.simulate(segs[i].u))
         e = np.abs(segs[i].y - p)
-        per.append({"branch": lab, "max_abs_error": float(e.max()), "at_input": float(segs[i].u[int(np.argmax(e))]),
-                    "n_levels": info["n_levels"], "lam": info["lam"], "method": info["method"]})
+        per.append(
+            {
+                "branch": lab,
+                "max_abs_error": float(e.max()),
+                "at_input": float(segs[i].u[int(np.argmax(e))]),
+                "n_levels": info["n_levels"],
+                "lam": info["lam"],
+                "method": info["method"],
+            }
+        )
         if verbose:
-            print(f"  LOBO branch {lab}: max |error| {e.max():.3f} at {segs[i].u[int(np.argmax(e))]:.2f} "
-                  f"(n_levels {info['n_levels']}, {info['method']}, lam {info['lam']})", file=sys.stderr, flush=True)
+            print(
+                f"  LOBO branch {lab}: max |error| {e.max():.3f} at {segs[i].u[int(np.argmax(e))]:.2f} "
+                f"(n_levels {info['n_levels']}, {info['method']}, lam {info['lam']})",
+                file=sys.stderr,
+                flush=True,
+            )
         ys.append(segs[i].y)
         yh.append(p)
     m = metrics(np.concatenate(ys), np.concatenate(yh))
@@ -97,7 +109,9 @@ def lobo(rec, u_min, u_max, verbose=True):
         ys2, yh2 = [], []
         for i, lab in enumerate(labels):
             if lab != 0:
-                pe, _ = fit_everett(Preisach.from_range(u_min, u_max, n_levels=35), [s for j, s in enumerate(segs) if j != i], interp)
+                pe, _ = fit_everett(
+                    Preisach.from_range(u_min, u_max, n_levels=35), [s for j, s in enumerate(segs) if j != i], interp
+                )
                 ys2.append(segs[i].y)
                 yh2.append(np.asarray(pe.simulate(segs[i].u)))
         out["fixed_everett_35"][interp] = metrics(np.concatenate(ys2), np.concatenate(yh2))
@@ -128,57 +142,108 @@ def main(argv=None):
         row = {"holdout_residue": r, "heldout_branches": split.test_labels, "train_branches": split.train_labels, "models": {}}
         for name, m in (("eupi", base), ("eupi+output_saturation", sat)):
             _, te = _metrics_pair(m, split)
-            row["models"][name] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
-                                   "n_parameters": n_parameters(m)}
+            row["models"][name] = {
+                "heldout_e_r": te["e_r_percent"],
+                "heldout_rmse": te["rmse"],
+                "heldout_max_abs": te["max_abs_error"],
+                "n_parameters": n_parameters(m),
+            }
         pm, info = cv_fit_preisach(split.train, u_min, u_max, verbose=True)
         te = _heldout(pm, split)
-        row["models"]["preisach"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
-                                     "n_levels": info["n_levels"], "lam": info["lam"], "method": info["method"], "n_weights_nominal": pm.n_relays + 1,
-                                     "n_nonzero_weights": info["n_nonzero"], "effective_dof": info["dof"],
-                                     "train_rmse": float(np.sqrt(info["sse"] / info["n"])), "inner_cv": info["inner_cv"],
-                                     "inner_cv_rmse": info["chosen"]["cv_rmse"], "cv_table": info["cv_table"]}
+        row["models"]["preisach"] = {
+            "heldout_e_r": te["e_r_percent"],
+            "heldout_rmse": te["rmse"],
+            "heldout_max_abs": te["max_abs_error"],
+            "n_levels": info["n_levels"],
+            "lam": info["lam"],
+            "method": info["method"],
+            "n_weights_nominal": pm.n_relays + 1,
+            "n_nonzero_weights": info["n_nonzero"],
+            "effective_dof": info["dof"],
+            "train_rmse": float(np.sqrt(info["sse"] / info["n"])),
+            "inner_cv": info["inner_cv"],
+            "inner_cv_rmse": info["chosen"]["cv_rmse"],
+            "cv_table": info["cv_table"],
+        }
         pc, info_c = cv_fit_preisach(split.train, u_min, u_max, ramp=False)
         te = _heldout(pc, split)
-        row["models"]["preisach_crisp"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
-                                           "n_levels": info_c["n_levels"], "lam": info_c["lam"]}
+        row["models"]["preisach_crisp"] = {
+            "heldout_e_r": te["e_r_percent"],
+            "heldout_rmse": te["rmse"],
+            "heldout_max_abs": te["max_abs_error"],
+            "n_levels": info_c["n_levels"],
+            "lam": info_c["lam"],
+        }
         for interp in EVERETT_INTERPOLANTS:  # fixed choices, shown for reference (the inner CV above may pick one of them)
             pe, _ = fit_everett(Preisach.from_range(u_min, u_max, n_levels=35), split.train, interp)
             te = _heldout(pe, split)
-            row["models"][f"everett_{interp}_35"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"],
-                                                     "inner_cv_rmse": next(r["cv_rmse"] for r in info["cv_table"]
-                                                                           if r["method"] == f"everett-{interp}" and r["n_levels"] == 35)}
+            row["models"][f"everett_{interp}_35"] = {
+                "heldout_e_r": te["e_r_percent"],
+                "heldout_rmse": te["rmse"],
+                "heldout_max_abs": te["max_abs_error"],
+                "inner_cv_rmse": next(
+                    r["cv_rmse"] for r in info["cv_table"] if r["method"] == f"everett-{interp}" and r["n_levels"] == 35
+                ),
+            }
         y = np.concatenate([s.y for s in split.test])
         yi = np.concatenate([neighbour_interpolation(split.train, s) for s in split.test])
         te = metrics(y, yi)
-        row["models"]["neighbour_interpolation"] = {"heldout_e_r": te["e_r_percent"], "heldout_rmse": te["rmse"], "heldout_max_abs": te["max_abs_error"]}
+        row["models"]["neighbour_interpolation"] = {
+            "heldout_e_r": te["e_r_percent"],
+            "heldout_rmse": te["rmse"],
+            "heldout_max_abs": te["max_abs_error"],
+        }
         row["seconds"] = time.time() - t0
         rows.append(row)
-        print(f"fold {r}: " + ", ".join(f"{k} e_r {v['heldout_e_r']:.2f} %" for k, v in row["models"].items())
-              + f" ({row['seconds']:.0f} s)", file=sys.stderr, flush=True)
-    doc = {"record": "sma_wing_forc_train.csv", "grids": {"n_levels": list(N_LEVELS_GRID), "lam": list(LAM_GRID)},
-           "criterion": "pooled inner leave-one-branch-out RMSE", "relays": "ramp (width = one level cell) unless named crisp",
-           "folds": rows}
+        print(
+            f"fold {r}: "
+            + ", ".join(f"{k} e_r {v['heldout_e_r']:.2f} %" for k, v in row["models"].items())
+            + f" ({row['seconds']:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
+    doc = {
+        "record": "sma_wing_forc_train.csv",
+        "grids": {"n_levels": list(N_LEVELS_GRID), "lam": list(LAM_GRID)},
+        "criterion": "pooled inner leave-one-branch-out RMSE",
+        "relays": "ramp (width = one level cell) unless named crisp",
+        "folds": rows,
+    }
     if a.lobo:
         doc["lobo"] = lobo(rec, u_min, u_max)
     atomic_write_json(a.out, doc)
-    print("| held out | EUPI e_r / RMSE | EUPI+sat e_r / RMSE | Preisach e_r / RMSE | Preisach n_levels, lam | Preisach dof (nonzero / nominal) | EUPI+sat params "
-          "| crisp Preisach e_r | neighbour interpolation e_r | Everett spline / pchip / linear e_r (inner-CV RMSE) |")
+    print(
+        "| held out | EUPI e_r / RMSE | EUPI+sat e_r / RMSE | Preisach e_r / RMSE | Preisach n_levels, lam | Preisach dof (nonzero / nominal) | EUPI+sat params "
+        "| crisp Preisach e_r | neighbour interpolation e_r | Everett spline / pchip / linear e_r (inner-CV RMSE) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         e, s, p = (row["models"][k] for k in ("eupi", "eupi+output_saturation", "preisach"))
-        print(f"| {row['holdout_residue']}: {row['heldout_branches']} | {e['heldout_e_r']:.2f} / {e['heldout_rmse']:.4f} | "
-              f"{s['heldout_e_r']:.2f} / {s['heldout_rmse']:.4f} | {p['heldout_e_r']:.2f} / {p['heldout_rmse']:.4f} | "
-              f"{p['n_levels']}, {p['method'] if p['lam'] is None else format(p['lam'], '.0e')} | {p['effective_dof']:.1f} ({p['n_nonzero_weights']} / {p['n_weights_nominal']}) | {s['n_parameters']} "
-              f"| {row['models']['preisach_crisp']['heldout_e_r']:.2f} | {row['models']['neighbour_interpolation']['heldout_e_r']:.2f} | "
-              + " / ".join(f"{row['models'][f'everett_{k}_35']['heldout_e_r']:.2f} ({row['models'][f'everett_{k}_35']['inner_cv_rmse']:.3f})"
-                           for k in ("spline", "pchip", "linear")) + " |")
+        print(
+            f"| {row['holdout_residue']}: {row['heldout_branches']} | {e['heldout_e_r']:.2f} / {e['heldout_rmse']:.4f} | "
+            f"{s['heldout_e_r']:.2f} / {s['heldout_rmse']:.4f} | {p['heldout_e_r']:.2f} / {p['heldout_rmse']:.4f} | "
+            f"{p['n_levels']}, {p['method'] if p['lam'] is None else format(p['lam'], '.0e')} | {p['effective_dof']:.1f} ({p['n_nonzero_weights']} / {p['n_weights_nominal']}) | {s['n_parameters']} "
+            f"| {row['models']['preisach_crisp']['heldout_e_r']:.2f} | {row['models']['neighbour_interpolation']['heldout_e_r']:.2f} | "
+            + " / ".join(
+                f"{row['models'][f'everett_{k}_35']['heldout_e_r']:.2f} ({row['models'][f'everett_{k}_35']['inner_cv_rmse']:.3f})"
+                for k in ("spline", "pchip", "linear")
+            )
+            + " |"
+        )
     if a.lobo:
         lb = doc["lobo"]
-        print(f"LOBO (every descending branch from all the others, nested inner CV): pooled e_r {lb['pooled']['e_r_percent']:.2f} %, "
-              f"RMSE {lb['pooled']['rmse']:.4f}; worst: " + ", ".join(f"branch {r['branch']} {r['max_abs_error']:.3f} at {r['at_input']:.1f}"
-                                                                       for r in sorted(lb['branches'], key=lambda r: -r['max_abs_error'])[:3]))
-        print("LOBO, fixed Everett identification on 35 levels (no inner choice): " + ", ".join(
-            f"{k} e_r {v['e_r_percent']:.2f} % (RMSE {v['rmse']:.4f})" for k, v in lb["fixed_everett_35"].items()))
+        print(
+            f"LOBO (every descending branch from all the others, nested inner CV): pooled e_r {lb['pooled']['e_r_percent']:.2f} %, "
+            f"RMSE {lb['pooled']['rmse']:.4f}; worst: "
+            + ", ".join(
+                f"branch {r['branch']} {r['max_abs_error']:.3f} at {r['at_input']:.1f}"
+                for r in sorted(lb["branches"], key=lambda r: -r["max_abs_error"])[:3]
+            )
+        )
+        print(
+            "LOBO, fixed Everett identification on 35 levels (no inner choice): "
+            + ", ".join(f"{k} e_r {v['e_r_percent']:.2f} % (RMSE {v['rmse']:.4f})" for k, v in lb["fixed_everett_35"].items())
+        )
 
 
 if __name__ == "__main__":

@@ -27,13 +27,16 @@ VARIANTS = [[], ["creep"], ["strain_accumulation"], ["creep", "strain_accumulati
 
 def main(argv=None):
     from smafl_jax import EUPI, atomic_write_json, load_record
-    from smafl_jax._diagnose import Split, _segment, _metrics_pair, fit_extended, _effect_params
+    from smafl_jax._diagnose import Split, _effect_params, _metrics_pair, _segment, fit_extended
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
     ap.add_argument("--out", default=str(ROOT / "experiments" / "results" / "water_step_loro.json"))
     a = ap.parse_args(argv)
-    recs = [load_record(Path(a.data) / f"niti_wire_water_step_0{i}.csv", input="temperature_front_C", output="length_signal") for i in range(1, 5)]
+    recs = [
+        load_record(Path(a.data) / f"niti_wire_water_step_0{i}.csv", input="temperature_front_C", output="length_signal")
+        for i in range(1, 5)
+    ]
     segs = [_segment(r, np.arange(len(r))) for r in recs]
     u = np.concatenate([r.u for r in recs])
     base0 = EUPI.from_range(float(u.min()), float(u.max()), u_ref=float(u.min()))
@@ -43,12 +46,22 @@ def main(argv=None):
         for eff in VARIANTS:
             m, info = fit_extended(base0, eff, split)
             tr, te = _metrics_pair(m, split)
-            row = {"heldout_record": j + 1, "effects": eff, "train_rmse": tr["rmse"], "heldout_rmse": te["rmse"],
-                   "heldout_e_r_percent": te["e_r_percent"], "parameters": {n: _effect_params(m.get(n)) for n in eff},
-                   "seconds": info["seconds"]}
+            row = {
+                "heldout_record": j + 1,
+                "effects": eff,
+                "train_rmse": tr["rmse"],
+                "heldout_rmse": te["rmse"],
+                "heldout_e_r_percent": te["e_r_percent"],
+                "parameters": {n: _effect_params(m.get(n)) for n in eff},
+                "seconds": info["seconds"],
+            }
             rows.append(row)
-            print(f"held out {j + 1} {'+'.join(eff) or 'base':>18s}: train RMSE {tr['rmse']:.3f}, held-out RMSE {te['rmse']:.3f}, "
-                  f"e_r {te['e_r_percent']:.1f} %  {row['parameters']}", file=sys.stderr, flush=True)
+            print(
+                f"held out {j + 1} {'+'.join(eff) or 'base':>18s}: train RMSE {tr['rmse']:.3f}, held-out RMSE {te['rmse']:.3f}, "
+                f"e_r {te['e_r_percent']:.1f} %  {row['parameters']}",
+                file=sys.stderr,
+                flush=True,
+            )
     atomic_write_json(Path(a.out), rows)
 
 

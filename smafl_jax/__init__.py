@@ -33,18 +33,31 @@ from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, therm
 __version__ = "0.1.0"
 
 # identification
-from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
-from ._joule_lag import JouleLag
-from ._split import split_masks
 # uncertainty
-from ._bayes import ChainTooShortWarning, Posterior, Prior, SampleRun, default_priors, diagnostics, load_priors, load_run, run_sampler, summarize
+from ._bayes import (
+    ChainTooShortWarning,
+    Posterior,
+    Prior,
+    SampleRun,
+    default_priors,
+    diagnostics,
+    load_priors,
+    load_run,
+    run_sampler,
+    summarize,
+)
+
 # control
 from ._control import PID, ClosedLoop, IICompensator, closed_loop_metrics, simulate_closed_loop, sine_reference, step_reference
-from ._sweep import SweepResult, stack_models, sweep
+from ._diagnose import diagnose
+
 # residual diagnosis and effects
 from ._effects import EFFECT_NAMES, EFFECTS, ExtendedModel
-from ._diagnose import diagnose
+from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
+from ._joule_lag import JouleLag
 from ._preisach import Preisach
+from ._split import split_masks
+from ._sweep import SweepResult, stack_models, sweep
 
 __all__ = [
     "as_fit_data",

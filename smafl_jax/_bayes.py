@@ -63,7 +63,13 @@ __all__ = [
 
 NOISE_MODELS = ("gaussian", "student-t")
 LINEAR_MODES = ("sample", "marginalise", "profile")
-_DISTS = {"normal": ("loc", "scale"), "lognormal": ("loc", "scale"), "halfnormal": ("scale",), "uniform": ("low", "high"), "flat": ()}
+_DISTS = {
+    "normal": ("loc", "scale"),
+    "lognormal": ("loc", "scale"),
+    "halfnormal": ("scale",),
+    "uniform": ("low", "high"),
+    "flat": (),
+}
 _LOG2PI = math.log(2.0 * math.pi)
 
 
@@ -122,7 +128,9 @@ class Prior:
     @classmethod
     def from_dict(cls, d, where="prior"):
         if not isinstance(d, dict) or "dist" not in d:
-            raise UserInputError(f"{where}: expected an object with a 'dist' entry, e.g. {{'dist': 'lognormal', 'loc': -3, 'scale': 1}}")
+            raise UserInputError(
+                f"{where}: expected an object with a 'dist' entry, e.g. {{'dist': 'lognormal', 'loc': -3, 'scale': 1}}"
+            )
         dist = d["dist"]
         if dist not in _DISTS:
             raise UserInputError(f"{where}: unknown distribution {dist!r}; choose one of {sorted(_DISTS)}")
@@ -257,8 +265,21 @@ class Posterior:
     ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).
     """
 
-    def __init__(self, model, data, dt=None, *, trainable=None, noise="gaussian", nu=4.0, sigma=None, priors=None,
-                 linear="sample", gain_scale=None, prior_only=False):
+    def __init__(
+        self,
+        model,
+        data,
+        dt=None,
+        *,
+        trainable=None,
+        noise="gaussian",
+        nu=4.0,
+        sigma=None,
+        priors=None,
+        linear="sample",
+        gain_scale=None,
+        prior_only=False,
+    ):
         if noise not in NOISE_MODELS:
             raise UserInputError(f"noise model must be one of {NOISE_MODELS}, got {noise!r}")
         if linear not in LINEAR_MODES:
@@ -273,7 +294,9 @@ class Posterior:
             if eupi is None:
                 raise UserInputError(f"linear={linear!r} needs a model with an EUPI part, got {type(model).__name__}")
             if linear == "marginalise" and noise != "gaussian":
-                raise UserInputError("marginalising the gains is exact only for Gaussian noise; use noise='gaussian' or linear='profile'")
+                raise UserInputError(
+                    "marginalising the gains is exact only for Gaussian noise; use noise='gaussian' or linear='profile'"
+                )
             get = (lambda m: m) if isinstance(model, EUPI) else (lambda m: m.hysteresis)
             fields = ["gain", "v", "w", "poly", "offset"]
             spec = eqx.tree_at(lambda s: [getattr(get(s), f) for f in fields], spec, [False] * len(fields))
@@ -549,8 +572,20 @@ def _checkpoint(path):
     os.replace(tmp, bak)
 
 
-def run_sampler(posterior, n_steps, *, n_walkers=None, path=None, name="mcmc", seed=0, resume=True, progress=True,
-                checkpoint_s=10.0, initial=None, on_step=None):
+def run_sampler(
+    posterior,
+    n_steps,
+    *,
+    n_walkers=None,
+    path=None,
+    name="mcmc",
+    seed=0,
+    resume=True,
+    progress=True,
+    checkpoint_s=10.0,
+    initial=None,
+    on_step=None,
+):
     """Run (or resume) `emcee.EnsembleSampler` with the vectorised log-posterior.
 
     With ``path`` the chain goes to an emcee HDF5 backend.  If the file already
@@ -583,8 +618,13 @@ def run_sampler(posterior, n_steps, *, n_walkers=None, path=None, name="mcmc", s
             if it is None:
                 it_bak = _backend_ok(bak, name) if bak.exists() else None
                 if it_bak is None:
-                    raise UserInputError(f"{path}: the chain file is unreadable and has no usable checkpoint; rerun with a fresh output (restart)")
-                print(f"note: {path} was left unreadable by an interruption; continuing from its checkpoint at step {it_bak}", file=sys.stderr)
+                    raise UserInputError(
+                        f"{path}: the chain file is unreadable and has no usable checkpoint; rerun with a fresh output (restart)"
+                    )
+                print(
+                    f"note: {path} was left unreadable by an interruption; continuing from its checkpoint at step {it_bak}",
+                    file=sys.stderr,
+                )
                 shutil.copyfile(bak, path)
                 it = it_bak
             done = it
@@ -592,7 +632,9 @@ def run_sampler(posterior, n_steps, *, n_walkers=None, path=None, name="mcmc", s
             path.unlink()
         backend = _hdf_backend(path, name)
         if done and backend.shape != (n_walkers, ndim):
-            raise UserInputError(f"{path}: holds a chain of shape {backend.shape} (walkers, parameters); this run has {(n_walkers, ndim)}; restart instead of resuming")
+            raise UserInputError(
+                f"{path}: holds a chain of shape {backend.shape} (walkers, parameters); this run has {(n_walkers, ndim)}; restart instead of resuming"
+            )
         if done > n_steps:
             raise UserInputError(f"{path}: already holds {done} steps, more than the {n_steps} requested")
         if not done:
@@ -666,8 +708,10 @@ def diagnostics(run, burn=None, *, warn=True):
     reliable = bool(n_kept >= 50 * tau_max)
     messages = []
     if not reliable:
-        msg = (f"chain too short for reliable estimates: {n_kept} steps kept after burn-in, fewer than 50 x the "
-               f"largest autocorrelation time ({tau_max:.1f} steps); run at least {int(math.ceil(50 * tau_max + burn))} steps")
+        msg = (
+            f"chain too short for reliable estimates: {n_kept} steps kept after burn-in, fewer than 50 x the "
+            f"largest autocorrelation time ({tau_max:.1f} steps); run at least {int(math.ceil(50 * tau_max + burn))} steps"
+        )
         messages.append(msg)
         if warn:
             warnings.warn(msg, ChainTooShortWarning, stacklevel=2)
@@ -688,8 +732,15 @@ def diagnostics(run, burn=None, *, warn=True):
 
 def _stats(x):
     q = np.quantile(x, [0.025, 0.05, 0.5, 0.95, 0.975])
-    return {"mean": float(np.mean(x)), "sd": float(np.std(x, ddof=1)), "q025": float(q[0]), "q05": float(q[1]),
-            "median": float(q[2]), "q95": float(q[3]), "q975": float(q[4])}
+    return {
+        "mean": float(np.mean(x)),
+        "sd": float(np.std(x, ddof=1)),
+        "q025": float(q[0]),
+        "q05": float(q[1]),
+        "median": float(q[2]),
+        "q95": float(q[3]),
+        "q975": float(q[4]),
+    }
 
 
 def derived_quantities(posterior, phys):
@@ -703,8 +754,11 @@ def derived_quantities(posterior, phys):
     if k1n and k2n:
         out["steady_state_gain"] = _stats(phys[:, names.index(k2n)] / phys[:, names.index(k1n)])
     elif isinstance(posterior.model, Cascade):
-        out["steady_state_gain"] = {"identified": False, "note": "k2 does not affect the cascade's displacement (it cancels in "
-                                    "sqrt(theta k1/k2)); K2/K1 is identified only by the JouleThermal model fitted alone (U^2 -> output)"}
+        out["steady_state_gain"] = {
+            "identified": False,
+            "note": "k2 does not affect the cascade's displacement (it cancels in "
+            "sqrt(theta k1/k2)); K2/K1 is identified only by the JouleThermal model fitted alone (U^2 -> output)",
+        }
     elif isinstance(posterior.model, JouleThermal) and k1n:
         k2 = float(posterior.model.k2)
         out["steady_state_gain"] = {"identified": False, "note": f"k2 held fixed at {k2:g}"}
@@ -714,7 +768,7 @@ def derived_quantities(posterior, phys):
 def summarize(posterior, run, burn=None, *, warn=True):
     """``summary.json`` content: per-parameter posterior statistics (physical units) and run diagnostics."""
     diag = diagnostics(run, burn, warn=warn)
-    flat = run.chain[diag["burn"]:].reshape(-1, posterior.ndim)
+    flat = run.chain[diag["burn"] :].reshape(-1, posterior.ndim)
     phys = posterior.physical(flat)
     params = {}
     for j, name in enumerate(posterior.names):
@@ -732,7 +786,11 @@ def summarize(posterior, run, burn=None, *, warn=True):
         "ess_min": float(np.nanmin(diag["ess"])),
         "reliable": diag["reliable"],
         "warnings": diag["warnings"],
-        "settings": {"noise": posterior.noise, "nu": posterior.nu if posterior.noise == "student-t" else None,
-                     "linear": posterior.linear, "gain_scale": posterior.gain_scale if posterior.linear != "sample" else None,
-                     "priors": {k: v.to_dict() for k, v in posterior.priors.items()}},
+        "settings": {
+            "noise": posterior.noise,
+            "nu": posterior.nu if posterior.noise == "student-t" else None,
+            "linear": posterior.linear,
+            "gain_scale": posterior.gain_scale if posterior.linear != "sample" else None,
+            "priors": {k: v.to_dict() for k, v in posterior.priors.items()},
+        },
     }

@@ -46,4 +46,6 @@ class Cascade(eqx.Module):
     @classmethod
     def from_range(cls, u_max, *, thermal=None, **eupi_kwargs):
         """Untrained cascade for drive voltages in ``[0, u_max]`` (paper defaults for the thermal part)."""
-        return cls(thermal=thermal if thermal is not None else JouleThermal(), hysteresis=EUPI.from_range(0.0, u_max, **eupi_kwargs))
+        return cls(
+            thermal=thermal if thermal is not None else JouleThermal(), hysteresis=EUPI.from_range(0.0, u_max, **eupi_kwargs)
+        )

@@ -17,7 +17,16 @@ import numpy as np
 
 from . import _config  # noqa: F401
 
-__all__ = ["positive", "parameter", "as_float_array", "constrain", "unconstrain", "log_jacobian", "positive_mask", "POSITIVE_FLOOR"]
+__all__ = [
+    "positive",
+    "parameter",
+    "as_float_array",
+    "constrain",
+    "unconstrain",
+    "log_jacobian",
+    "positive_mask",
+    "POSITIVE_FLOOR",
+]
 
 #: Smallest value `unconstrain` maps; exact zeros (e.g. from NNLS) become this.
 POSITIVE_FLOOR = 1e-10
@@ -29,7 +38,11 @@ def as_float_array(x):
     Without it ``JouleThermal(0.05, 0.04)`` would hold Python floats, which
     `equinox` treats as non-array leaves that no fit or sampler ever moves.
     """
-    if x is None or isinstance(x, jax.core.Tracer) or not isinstance(x, (int, float, list, tuple, np.ndarray, np.generic, jax.Array)):
+    if (
+        x is None
+        or isinstance(x, jax.core.Tracer)
+        or not isinstance(x, (int, float, list, tuple, np.ndarray, np.generic, jax.Array))
+    ):
         return x
     if isinstance(x, jax.Array) and jnp.issubdtype(x.dtype, jnp.floating):
         return x

@@ -197,7 +197,9 @@ def plant_step(model, state, u, dt):
     ops = jnp.where(fresh, ops0, ops)
     ops, _ = play_step(ops, s, r, al)
     n_poly = np.shape(hyst.poly)[0]
-    row = jnp.concatenate([s[None], ops, jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0], jnp.ones(1)])
+    row = jnp.concatenate(
+        [s[None], ops, jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0], jnp.ones(1)]
+    )
     y = row @ hyst.linear_weights()
     return (theta, ops, jnp.asarray(False)), y
 
@@ -259,7 +261,21 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
         a_abs, a_sq, a_max, a_sat, a_n = acc
         acc = (a_abs + w * jnp.abs(err), a_sq + w * err * err, jnp.maximum(a_max, w * jnp.abs(err)), a_sat + w * sat, a_n + w)
         pst, y_next = plant_step(loop.plant, pst, u, dt)
-        out = {"y": y, "y_meas": ym, "reference": r_k, "error": err, "u": u, "u1": u1, "u2": u2, "integral": integ, "saturated": sat} if record else None
+        out = (
+            {
+                "y": y,
+                "y_meas": ym,
+                "reference": r_k,
+                "error": err,
+                "u": u,
+                "u1": u1,
+                "u2": u2,
+                "integral": integ,
+                "saturated": sat,
+            }
+            if record
+            else None
+        )
         return (pst, y_next, integ, deriv, ym, cst, u2, yhat, acc), out
 
     times = jnp.arange(n) * dt

@@ -129,9 +129,7 @@ def _pick(path, header, wanted, candidates, role, option):
         return wanted
     found = [c for c in candidates if c in header]
     if not found:
-        raise DataError(
-            path, f"cannot tell which column is the {role}; choose one of {header} with {option} COLUMN"
-        )
+        raise DataError(path, f"cannot tell which column is the {role}; choose one of {header} with {option} COLUMN")
     return found[0]
 
 
@@ -143,7 +141,10 @@ def _check_time(path, col, t, rtol, line_offset=2):
     bad = np.flatnonzero(d < 0)
     if bad.size:
         raise DataError(
-            path, f"time goes backwards ({float(t[bad[0]]):g} -> {float(t[bad[0] + 1]):g})", column=col, row=int(bad[0] + 1 + line_offset)
+            path,
+            f"time goes backwards ({float(t[bad[0]]):g} -> {float(t[bad[0] + 1]):g})",
+            column=col,
+            row=int(bad[0] + 1 + line_offset),
         )
     dt = float(np.median(d))
     bad = np.flatnonzero(np.abs(d - dt) > rtol * dt)

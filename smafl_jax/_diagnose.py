@@ -107,7 +107,9 @@ def choose_base(record):
         model = Cascade(thermal=JouleThermal(), hysteresis=EUPI.from_range(0.0, float(u.max())))
         return model, "cascade: voltage input with dynamics (Joule thermal lag + EUPI on the effective voltage)"
     if is_voltage(record.input_name):
-        return EUPI.from_range(float(u.min()), float(u.max())), "EUPI on the voltage: rate-free record (branch column or dt >= 5 s)"
+        return EUPI.from_range(
+            float(u.min()), float(u.max())
+        ), "EUPI on the voltage: rate-free record (branch column or dt >= 5 s)"
     return (
         EUPI.from_range(float(u.min()), float(u.max()), u_ref=float(u.min())),
         f"EUPI on the input: '{record.input_name}' is not a voltage (u_ref = input minimum)",
@@ -172,11 +174,19 @@ def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
         labels = list(dict.fromkeys(b.tolist()))
         held = [k for k in labels if k != 0 and k % 3 == holdout_residue]
         if not held or len(held) == len(labels):
-            raise UserInputError(f"branch split needs at least one branch labelled {holdout_residue} mod 3 (not 0) and one other branch")
+            raise UserInputError(
+                f"branch split needs at least one branch labelled {holdout_residue} mod 3 (not 0) and one other branch"
+            )
         train = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k not in held]
         test = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k in held]
-        return Split("branch", f"branches with label % 3 == {holdout_residue} held out (interleaved); branch 0 (major loop) trained", train, test,
-                     [k for k in labels if k not in held], held)
+        return Split(
+            "branch",
+            f"branches with label % 3 == {holdout_residue} held out (interleaved); branch 0 (major loop) trained",
+            train,
+            test,
+            [k for k in labels if k not in held],
+            held,
+        )
     n = len(record)
     cut = int(round(n * (1.0 - holdout_fraction)))
     if cut < 20 or n - cut < 10:
@@ -184,8 +194,14 @@ def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
     full = np.arange(n)
     train = [_segment(record, full[:cut], load_col=lc)]
     test = [_segment(record, full, mask=full >= cut, load_col=lc)]
-    return Split("time", f"time block: first {1 - holdout_fraction:.0%} trained, last {holdout_fraction:.0%} held out (model run from t = 0)",
-                 train, test, [f"0..{cut - 1}"], [f"{cut}..{n - 1}"])
+    return Split(
+        "time",
+        f"time block: first {1 - holdout_fraction:.0%} trained, last {holdout_fraction:.0%} held out (model run from t = 0)",
+        train,
+        test,
+        [f"0..{cut - 1}"],
+        [f"{cut}..{n - 1}"],
+    )
 
 
 # -- simulation and metrics -------------------------------------------------------
@@ -224,7 +240,7 @@ def score(model, segs):
 def trainable_spec(model):
     """Train thermal k1, EUPI gains and effect parameters; keep grids, k2 and load references fixed."""
     spec = jax.tree_util.tree_map(eqx.is_inexact_array, model)
-    h = lambda m: m.hysteresis if not isinstance(m.base, EUPI) else m.base  # noqa: E731
+    h = lambda m: m.hysteresis if not isinstance(m.base, EUPI) else m.base
     spec = eqx.tree_at(lambda s: [getattr(h(s), f) for f in ("u_ref", "u_span", "r_sym", "r_asym", "alpha")], spec, [False] * 5)
     if isinstance(model.base, Cascade):
         spec = eqx.tree_at(lambda s: s.base.thermal.k2, spec, False)
@@ -297,7 +313,7 @@ def profile_gains(model, segs, *, gn_steps=8):
         sse = float(np.sum((A @ theta - y) ** 2))
     else:
         m, w = float(sat.m), float(sat.w)
-        smap = lambda z: m + w * np.tanh((z - m) / w)  # noqa: E731
+        smap = lambda z: m + w * np.tanh((z - m) / w)
         theta = _bvls(A, m + w * np.arctanh(np.clip((y - m) / w, -0.995, 0.995)), nonneg)
         sse = float(np.sum((smap(A @ theta) - y) ** 2))
         for _ in range(gn_steps):
@@ -443,7 +459,10 @@ def _effect_grid(name, ctx):
     if name == "output_saturation":
         return [OutputSaturation(m=a(ym + dm * yr), w=a(f * yr / 2)) for dm in (-0.1, 0.0, 0.1) for f in (1.02, 1.2, 2.0)]
     if name == "load_dependence":
-        return [LoadDependence(a=a(x), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])) for x in (-0.2, 0.0, 0.2)]
+        return [
+            LoadDependence(a=a(x), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"]))
+            for x in (-0.2, 0.0, 0.2)
+        ]
     if name == "strain_accumulation":
         return [StrainAccumulation(c=a(0.0))]  # a single start: c is profiled with the gains
     raise UserInputError(f"unknown effect {name!r}; catalogue: {list(EFFECTS)}")
@@ -503,7 +522,12 @@ def applicable_effects(base, split, rate_free):
 
 def _context(split):
     y = np.concatenate([s.y[s.mask] for s in split.train])
-    ctx = {"dt": float(split.train[0].dt), "y_lo": float(y.min()), "y_range": float(np.ptp(y)) or 1.0, "y_mid": float(0.5 * (y.min() + y.max()))}
+    ctx = {
+        "dt": float(split.train[0].dt),
+        "y_lo": float(y.min()),
+        "y_range": float(np.ptp(y)) or 1.0,
+        "y_mid": float(0.5 * (y.min() + y.max())),
+    }
     ctx["duration"] = max(len(s.u) for s in split.train) * ctx["dt"]  # longest training stretch (creep tau bound)
     if split.train[0].load is not None:
         ld = np.concatenate([s.load for s in split.train])
@@ -554,16 +578,26 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
             return cache[key]
 
         simplex = [phi0] + [phi0 + np.eye(len(lay))[i] * lay[i][3] for i in range(len(lay))]
-        res = minimize(objective, phi0, method="Nelder-Mead",
-                       options={"initial_simplex": np.array(simplex), "maxiter": max_iter or 150 * len(lay), "xatol": 1e-4, "fatol": 1e-10})
+        res = minimize(
+            objective,
+            phi0,
+            method="Nelder-Mead",
+            options={"initial_simplex": np.array(simplex), "maxiter": max_iter or 150 * len(lay), "xatol": 1e-4, "fatol": 1e-10},
+        )
         best = _set_phi(best, lay, res.x)
         n_eval += len(cache)
         converged = bool(res.success)
     else:
         converged = True
     model, sse = profile_gains(best, split.train)
-    info = {"n_starts": len(starts), "n_evaluations": n_eval, "nonlinear_parameters": len(lay), "converged": converged,
-            "train_sse": sse, "seconds": time.time() - t0}
+    info = {
+        "n_starts": len(starts),
+        "n_evaluations": n_eval,
+        "nonlinear_parameters": len(lay),
+        "converged": converged,
+        "train_sse": sse,
+        "seconds": time.time() - t0,
+    }
     _log(f"  fit {'+'.join(effects) or 'base'}: {len(starts)} starts, {n_eval} evaluations, {info['seconds']:.1f} s", verbose)
     return model, info
 
@@ -582,12 +616,16 @@ def _train_sse(model, segs):
 #: Catalogue entry of the Preisach base replacement (see module docstring, step 6).
 NONLOCAL_MEMORY = {
     "name": "nonlocal_memory",
-    "physics": ("Return-point (wiping-out) memory without congruency: the SMA's phase-fraction hysteresis is a Preisach-type "
-                "distribution of hysterons (relays switching up at a, down at b <= a); first-order reversal curves identify "
-                "it, and play-operator (PI/EUPI) models cannot represent its non-congruent minor loops. Offered for "
-                "rate-free records only."),
-    "parameters": {"w_ab": "hysteron weights on the triangular level grid (>= 0)",
-                   "n_levels, lam": "grid size and Tikhonov strength, chosen by inner CV on the training segments"},
+    "physics": (
+        "Return-point (wiping-out) memory without congruency: the SMA's phase-fraction hysteresis is a Preisach-type "
+        "distribution of hysterons (relays switching up at a, down at b <= a); first-order reversal curves identify "
+        "it, and play-operator (PI/EUPI) models cannot represent its non-congruent minor loops. Offered for "
+        "rate-free records only."
+    ),
+    "parameters": {
+        "w_ab": "hysteron weights on the triangular level grid (>= 0)",
+        "n_levels, lam": "grid size and Tikhonov strength, chosen by inner CV on the training segments",
+    },
 }
 
 
@@ -636,8 +674,14 @@ def effect_evidence(model, split, names, residual):
             stat = n_eff * r * r
             from scipy import stats
 
-            item = {"partial_r2": r * r, "corr": r, "n_eff": n_eff, "lm_stat": stat, "p_value": float(stats.chi2.sf(stat, 1)),
-                    "probe": {k: float(np.asarray(getattr(probe, k))) for k in probe.parameters if hasattr(probe, k)}}
+            item = {
+                "partial_r2": r * r,
+                "corr": r,
+                "n_eff": n_eff,
+                "lm_stat": stat,
+                "p_value": float(stats.chi2.sf(stat, 1)),
+                "probe": {k: float(np.asarray(getattr(probe, k))) for k in probe.parameters if hasattr(probe, k)},
+            }
             if best is None or item["partial_r2"] > best["partial_r2"]:
                 best = item
         out[name] = best or {"partial_r2": 0.0, "corr": 0.0, "n_eff": 0.0, "lm_stat": 0.0, "p_value": 1.0, "probe": {}}
@@ -653,8 +697,18 @@ def _metrics_pair(model, split):
     return tr, te
 
 
-def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effects=2, p_threshold=0.01, holdout_residue=2, refit=True,
-             verbose=True):
+def diagnose(
+    record,
+    *,
+    effects=None,
+    max_candidates=3,
+    min_gain=0.05,
+    max_effects=2,
+    p_threshold=0.01,
+    holdout_residue=2,
+    refit=True,
+    verbose=True,
+):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
 
     The returned models are fitted on the training part of the split (the
@@ -668,12 +722,17 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
     base0, base_rule = choose_base(record)
     rate_free = is_rate_free(record)
     split = make_split(record, holdout_residue=holdout_residue)
-    names = applicable_effects(base0, split, rate_free) if effects is None else [n for n in effects if n != NONLOCAL_MEMORY["name"]]
+    names = (
+        applicable_effects(base0, split, rate_free) if effects is None else [n for n in effects if n != NONLOCAL_MEMORY["name"]]
+    )
     offer_preisach = rate_free and (effects is None or NONLOCAL_MEMORY["name"] in effects)
     unknown = [n for n in names if n not in EFFECTS]
     if unknown:
         raise UserInputError(f"unknown effect(s) {unknown}; catalogue: {list(EFFECTS)}")
-    _log(f"diagnose: {len(record)} samples, base {type(base0).__name__}, split {split.kind}, {len(names)} applicable effects", verbose)
+    _log(
+        f"diagnose: {len(record)} samples, base {type(base0).__name__}, split {split.kind}, {len(names)} applicable effects",
+        verbose,
+    )
     k1_grid = (0.01, 0.03, 0.1, 0.3) if isinstance(base0, Cascade) else None
     base, base_info = fit_extended(base0, [], split, k1_grid=k1_grid, verbose=verbose)
     base_tr, base_te = _metrics_pair(base, split)
@@ -701,7 +760,11 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
     ranked = sorted(names, key=lambda n: -evidence[n]["partial_r2"])
     plausible = [n for n in ranked if evidence[n]["p_value"] < p_threshold]
     to_fit = plausible[:max_candidates]
-    _log("evidence ranking: " + ", ".join(f"{n} (R2 {evidence[n]['partial_r2']:.3f}, p {evidence[n]['p_value']:.1e})" for n in ranked), verbose)
+    _log(
+        "evidence ranking: "
+        + ", ".join(f"{n} (R2 {evidence[n]['partial_r2']:.3f}, p {evidence[n]['p_value']:.1e})" for n in ranked),
+        verbose,
+    )
 
     base_h = base_te["rmse"]
     candidates = []
@@ -712,12 +775,19 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
             m, info = fit_extended(base, [name], split, verbose=verbose)
             tr, te = _metrics_pair(m, split)
             ic = information_criteria(m, split.train)
-            entry.update({
-                "train_rmse": tr["rmse"], "heldout_rmse": te["rmse"], "heldout_e_r_percent": te["e_r_percent"],
-                "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
-                "delta_bic": ic["bic"] - base_ic["bic"], "delta_aic": ic["aic"] - base_ic["aic"], "added_parameters": ic["k"] - base_ic["k"],
-                "parameters": _effect_params(m.get(name)), "fit": info,
-            })
+            entry.update(
+                {
+                    "train_rmse": tr["rmse"],
+                    "heldout_rmse": te["rmse"],
+                    "heldout_e_r_percent": te["e_r_percent"],
+                    "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
+                    "delta_bic": ic["bic"] - base_ic["bic"],
+                    "delta_aic": ic["aic"] - base_ic["aic"],
+                    "added_parameters": ic["k"] - base_ic["k"],
+                    "parameters": _effect_params(m.get(name)),
+                    "fit": info,
+                }
+            )
             entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
             fitted[name] = (m, te["rmse"], ic)
         candidates.append(entry)
@@ -741,40 +811,89 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
             _, te2 = _metrics_pair(m2, split)
             ic2 = information_criteria(m2, split.train)
             ok = te2["rmse"] <= (1.0 - min_gain) * cur_h and ic2["bic"] < cur_ic["bic"]
-            c["combined_with"] = {"effects": selected + [c["name"]], "heldout_rmse": te2["rmse"], "delta_bic_vs_previous": ic2["bic"] - cur_ic["bic"], "accepted": bool(ok)}
+            c["combined_with"] = {
+                "effects": selected + [c["name"]],
+                "heldout_rmse": te2["rmse"],
+                "delta_bic_vs_previous": ic2["bic"] - cur_ic["bic"],
+                "accepted": bool(ok),
+            }
             if ok:
                 selected, chosen, cur_h, cur_ic = selected + [c["name"]], m2, te2["rmse"], ic2
     ext_tr, ext_te = _metrics_pair(chosen, split)
     _, ext_res_te = score(chosen, split.test)
     _, ext_res_tr = score(chosen, split.train)
 
-    strongest = _strongest_correlate(residuals["heldout"]["signal_correlations"] if not selected else
-                                     resid_after(chosen, split, ext_res_te))
+    strongest = _strongest_correlate(
+        residuals["heldout"]["signal_correlations"] if not selected else resid_after(chosen, split, ext_res_te)
+    )
     result = {
-        "record": {"n_samples": len(record), "sample_time_s": record.dt, "input_column": record.input_name, "output_column": record.output_name,
-                   "path": record.path, "sha256": record.sha256},
-        "base": {"model": type(base0).__name__, "rule": base_rule, "rate_free": rate_free, "train": base_tr, "heldout": base_te,
-                 "train_rmse": base_tr["rmse"], "heldout_rmse": base_te["rmse"], "information_criteria": base_ic, "fit": base_info},
-        "split": {"kind": split.kind, "rule": split.rule, "train": split.train_labels, "heldout": split.test_labels,
-                  "coverage": split_coverage(split)},
+        "record": {
+            "n_samples": len(record),
+            "sample_time_s": record.dt,
+            "input_column": record.input_name,
+            "output_column": record.output_name,
+            "path": record.path,
+            "sha256": record.sha256,
+        },
+        "base": {
+            "model": type(base0).__name__,
+            "rule": base_rule,
+            "rate_free": rate_free,
+            "train": base_tr,
+            "heldout": base_te,
+            "train_rmse": base_tr["rmse"],
+            "heldout_rmse": base_te["rmse"],
+            "information_criteria": base_ic,
+            "fit": base_info,
+        },
+        "split": {
+            "kind": split.kind,
+            "rule": split.rule,
+            "train": split.train_labels,
+            "heldout": split.test_labels,
+            "coverage": split_coverage(split),
+        },
         "residuals": residuals,
         "applicable_effects": names,
         "evidence_ranking": ranked,
         "candidates": candidates,
         "selected": selected,
-        "extended": {"effects": selected, "train": ext_tr, "heldout": ext_te, "train_rmse": ext_tr["rmse"], "heldout_rmse": ext_te["rmse"],
-                     "information_criteria": (fitted[selected[0]][2] if isinstance(chosen, Preisach) else information_criteria(chosen, split.train)),
-                     "parameters": {n: (_preisach_params(fitted[n][3]) if n == NONLOCAL_MEMORY["name"] else _effect_params(chosen.get(n)))
-                                    for n in selected},
-                     "residuals_heldout": {"whiteness": whiteness_report(ext_res_te, np.concatenate([s.u[s.mask] for s in split.test]))}},
-        "improvement": {"heldout_rmse_ratio": ext_te["rmse"] / base_te["rmse"] if base_te["rmse"] > 0 else 1.0,
-                        "heldout_rmse_reduction_percent": 100.0 * (1.0 - ext_te["rmse"] / base_te["rmse"]) if base_te["rmse"] > 0 else 0.0,
-                        "heldout_e_r_before": base_te["e_r_percent"], "heldout_e_r_after": ext_te["e_r_percent"]},
+        "extended": {
+            "effects": selected,
+            "train": ext_tr,
+            "heldout": ext_te,
+            "train_rmse": ext_tr["rmse"],
+            "heldout_rmse": ext_te["rmse"],
+            "information_criteria": (
+                fitted[selected[0]][2] if isinstance(chosen, Preisach) else information_criteria(chosen, split.train)
+            ),
+            "parameters": {
+                n: (_preisach_params(fitted[n][3]) if n == NONLOCAL_MEMORY["name"] else _effect_params(chosen.get(n)))
+                for n in selected
+            },
+            "residuals_heldout": {"whiteness": whiteness_report(ext_res_te, np.concatenate([s.u[s.mask] for s in split.test]))},
+        },
+        "improvement": {
+            "heldout_rmse_ratio": ext_te["rmse"] / base_te["rmse"] if base_te["rmse"] > 0 else 1.0,
+            "heldout_rmse_reduction_percent": 100.0 * (1.0 - ext_te["rmse"] / base_te["rmse"]) if base_te["rmse"] > 0 else 0.0,
+            "heldout_e_r_before": base_te["e_r_percent"],
+            "heldout_e_r_after": ext_te["e_r_percent"],
+        },
         "strongest_remaining_correlate": strongest,
-        "settings": {"max_candidates": max_candidates, "min_gain": min_gain, "max_effects": max_effects, "p_threshold": p_threshold},
+        "settings": {
+            "max_candidates": max_candidates,
+            "min_gain": min_gain,
+            "max_effects": max_effects,
+            "p_threshold": p_threshold,
+        },
         "seconds": time.time() - t_start,
     }
-    result["_residual_arrays"] = {"base_train": res_tr, "base_heldout": res_te, "ext_train": ext_res_tr, "ext_heldout": ext_res_te}
+    result["_residual_arrays"] = {
+        "base_train": res_tr,
+        "base_heldout": res_te,
+        "ext_train": ext_res_tr,
+        "ext_heldout": ext_res_te,
+    }
     unwrapped = chosen if selected else base.base
     if refit:
         base_all, ext_all, info = refit_whole_record(record, base.base, unwrapped, result, verbose)
@@ -784,8 +903,14 @@ def diagnose(record, *, effects=None, max_candidates=3, min_gain=0.05, max_effec
 
 
 def _preisach_params(info):
-    return {"method": info.get("method", "penalised"), "n_levels": info["n_levels"], "lam": info["lam"], "relay_width": info.get("width", 0.0),
-            "effective_dof": info["dof"], "n_nonzero_weights": info["n_nonzero"]}
+    return {
+        "method": info.get("method", "penalised"),
+        "n_levels": info["n_levels"],
+        "lam": info["lam"],
+        "relay_width": info.get("width", 0.0),
+        "effective_dof": info["dof"],
+        "n_nonzero_weights": info["n_nonzero"],
+    }
 
 
 def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
@@ -795,17 +920,36 @@ def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
     pm, info = cv_fit_preisach(split.train, float(u.min()), float(u.max()))
     tr, te = _metrics_pair(pm, split)
     ic = information_criteria(pm, split.train, k=info["dof"])
-    _log(f"  fit nonlocal_memory (Preisach): n_levels {info['n_levels']}, {info['method']}, lam {info['lam']}, dof {info['dof']:.1f}, "
-         f"held-out RMSE {te['rmse']:.4g}, {time.time() - t0:.1f} s", verbose)
+    _log(
+        f"  fit nonlocal_memory (Preisach): n_levels {info['n_levels']}, {info['method']}, lam {info['lam']}, dof {info['dof']:.1f}, "
+        f"held-out RMSE {te['rmse']:.4g}, {time.time() - t0:.1f} s",
+        verbose,
+    )
     nan = float("nan")
-    entry = {"name": NONLOCAL_MEMORY["name"], "base_replacement": True, "plausible": True, "fitted": True,
-             "evidence": {"partial_r2": nan, "corr": nan, "n_eff": nan, "lm_stat": nan, "p_value": nan, "probe": {},
-                          "note": "base replacement (not nested in the base): no score test; always fitted on rate-free records"},
-             "train_rmse": tr["rmse"], "heldout_rmse": te["rmse"], "heldout_e_r_percent": te["e_r_percent"],
-             "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
-             "delta_bic": ic["bic"] - base_ic["bic"], "delta_aic": ic["aic"] - base_ic["aic"], "added_parameters": ic["k"] - base_ic["k"],
-             "parameters": _preisach_params(info),
-             "fit": {"inner_cv": info["inner_cv"], "cv_table": info["cv_table"], "seconds": time.time() - t0}}
+    entry = {
+        "name": NONLOCAL_MEMORY["name"],
+        "base_replacement": True,
+        "plausible": True,
+        "fitted": True,
+        "evidence": {
+            "partial_r2": nan,
+            "corr": nan,
+            "n_eff": nan,
+            "lm_stat": nan,
+            "p_value": nan,
+            "probe": {},
+            "note": "base replacement (not nested in the base): no score test; always fitted on rate-free records",
+        },
+        "train_rmse": tr["rmse"],
+        "heldout_rmse": te["rmse"],
+        "heldout_e_r_percent": te["e_r_percent"],
+        "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
+        "delta_bic": ic["bic"] - base_ic["bic"],
+        "delta_aic": ic["aic"] - base_ic["aic"],
+        "added_parameters": ic["k"] - base_ic["k"],
+        "parameters": _preisach_params(info),
+        "fit": {"inner_cv": info["inner_cv"], "cv_table": info["cv_table"], "seconds": time.time() - t0},
+    }
     entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
     return entry, (pm, te["rmse"], ic, info)
 
@@ -842,21 +986,35 @@ def refit_whole_record(record, base, ext, result, verbose=True):
         # the grid and penalty are chosen again by the same inner CV, now over every branch: each inner fold then
         # predicts a branch between two trained neighbours, the situation of a new branch from the same rig
         u = np.asarray(record.u, float)
-        ext_all, pinfo = cv_fit_preisach(full.train, float(u.min()), float(u.max()), linear=ext.linear, init=ext.init,
-                                         ramp=bool(float(ext.width) > 0))
+        ext_all, pinfo = cv_fit_preisach(
+            full.train, float(u.min()), float(u.max()), linear=ext.linear, init=ext.init, ramp=bool(float(ext.width) > 0)
+        )
         preisach_cv = {**_preisach_params(pinfo), "inner_cv": pinfo["inner_cv"], "inner_cv_rmse": pinfo["chosen"]["cv_rmse"]}
     elif not result["selected"]:
         ext_all = base_all
     else:
         ext_all = fit_extended(ext, list(ext.effect_names), full)[0]
-    wrap = lambda m: ExtendedModel(m, ()) if isinstance(m, (EUPI, Cascade)) else m  # noqa: E731
-    info = {"fitted_on": full.rule, "segments": full.train_labels, "n_samples": int(sum(s.mask.sum() for s in full.train)),
-            "base_rmse_all": score(wrap(base_all), full.train)[0]["rmse"], "extended_rmse_all": score(wrap(ext_all), full.train)[0]["rmse"],
-            "extended_parameters": (_effect_params_all(ext_all, result["selected"]) if isinstance(ext_all, ExtendedModel) else
-                                    {NONLOCAL_MEMORY["name"]: preisach_cv} if preisach_cv else {}),
-            "seconds": time.time() - t0}
-    _log(f"refit on the whole record: base RMSE {info['base_rmse_all']:.4g}, extended RMSE {info['extended_rmse_all']:.4g} "
-         f"({info['seconds']:.1f} s)", verbose)
+    wrap = lambda m: ExtendedModel(m, ()) if isinstance(m, (EUPI, Cascade)) else m
+    info = {
+        "fitted_on": full.rule,
+        "segments": full.train_labels,
+        "n_samples": int(sum(s.mask.sum() for s in full.train)),
+        "base_rmse_all": score(wrap(base_all), full.train)[0]["rmse"],
+        "extended_rmse_all": score(wrap(ext_all), full.train)[0]["rmse"],
+        "extended_parameters": (
+            _effect_params_all(ext_all, result["selected"])
+            if isinstance(ext_all, ExtendedModel)
+            else {NONLOCAL_MEMORY["name"]: preisach_cv}
+            if preisach_cv
+            else {}
+        ),
+        "seconds": time.time() - t0,
+    }
+    _log(
+        f"refit on the whole record: base RMSE {info['base_rmse_all']:.4g}, extended RMSE {info['extended_rmse_all']:.4g} "
+        f"({info['seconds']:.1f} s)",
+        verbose,
+    )
     return base_all, ext_all, info
 
 
@@ -904,13 +1062,18 @@ def split_coverage(split, tol=0.02, warn_below=0.9):
             counts[names[k]][1] += 1
     total = sum(c[1] for c in counts.values())
     frac = sum(c[0] for c in counts.values()) / total if total else 1.0
-    out = {"covered_fraction": float(frac), "tolerance_of_span": tol,
-           "by_direction": {n: {"heldout_samples": c[1], "covered": (c[0] / c[1] if c[1] else None)} for n, c in counts.items()}}
+    out = {
+        "covered_fraction": float(frac),
+        "tolerance_of_span": tol,
+        "by_direction": {n: {"heldout_samples": c[1], "covered": (c[0] / c[1] if c[1] else None)} for n, c in counts.items()},
+    }
     if frac < warn_below:
         worst = min((n for n in counts if counts[n][1]), key=lambda n: counts[n][0] / counts[n][1])
-        out["warning"] = (f"only {100 * frac:.0f} % of the held-out samples lie on input levels the training part visits in the same "
-                          f"direction ({worst} samples least: {100 * counts[worst][0] / counts[worst][1]:.0f} %); the held-out errors "
-                          "measure extrapolation to an untrained branch, not prediction")
+        out["warning"] = (
+            f"only {100 * frac:.0f} % of the held-out samples lie on input levels the training part visits in the same "
+            f"direction ({worst} samples least: {100 * counts[worst][0] / counts[worst][1]:.0f} %); the held-out errors "
+            "measure extrapolation to an untrained branch, not prediction"
+        )
     return out
 
 
@@ -1003,8 +1166,12 @@ def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.0
             load[i : i + n] = rng.uniform(1.0, 3.0)
             i += n
         extra["load_N"] = load
-        eff = LoadDependence(a=a(sign * rng.uniform(0.05, 0.15)), b=a((1 if rng.random() < 0.5 else -1) * rng.uniform(0.05, 0.15)),
-                             load_ref=a(float(load.mean())), load_scale=a(float(load.std())))
+        eff = LoadDependence(
+            a=a(sign * rng.uniform(0.05, 0.15)),
+            b=a((1 if rng.random() < 0.5 else -1) * rng.uniform(0.05, 0.15)),
+            load_ref=a(float(load.mean())),
+            load_scale=a(float(load.std())),
+        )
     elif effect == "strain_accumulation":
         eff = StrainAccumulation(c=a(sign * rng.uniform(0.08, 0.25)))
     else:

@@ -97,7 +97,9 @@ class Delay(Effect):
 
     name: ClassVar[str] = "delay"
     needs: ClassVar[tuple] = ("time",)
-    physics: ClassVar[str] = "The output responds to the input tau seconds late (amplifier/DAQ latency, heat conduction from the SMA wire into the polymer, sensor filtering)."
+    physics: ClassVar[str] = (
+        "The output responds to the input tau seconds late (amplifier/DAQ latency, heat conduction from the SMA wire into the polymer, sensor filtering)."
+    )
     parameters: ClassVar[dict] = {"tau": "delay in seconds (> 0), fractional delays by linear interpolation"}
     tau: jnp.ndarray = positive()
 
@@ -112,7 +114,8 @@ class SensorLag(Effect):
         "The transforming material follows the measured input through a first-order lag: heat conduction from the bath "
         "or the thermocouple into the wire, or the sensor's own response time. The hysteresis sees x'(k) = x'(k-1) + "
         "(1 - exp(-dt/tau)) (x(k) - x'(k-1)), x'(0) = x(0) (exact for a zero-order-hold input); unlike a transport delay "
-        "it smooths steps.")
+        "it smooths steps."
+    )
     parameters: ClassVar[dict] = {"tau": "lag time constant in seconds (> 0)"}
     tau: jnp.ndarray = positive()
 
@@ -123,8 +126,12 @@ class AmbientDrift(Effect):
 
     name: ClassVar[str] = "ambient_drift"
     needs: ClassVar[tuple] = ("time",)
-    physics: ClassVar[str] = "The ambient temperature (or the rest temperature of the actuator) drifts linearly during the record, shifting the thermal state the hysteresis sees."
-    parameters: ClassVar[dict] = {"drift": "change of the thermal state per 1000 s in units of q_ref = u_span^2 (cascade) or of the input span (EUPI base); signed"}
+    physics: ClassVar[str] = (
+        "The ambient temperature (or the rest temperature of the actuator) drifts linearly during the record, shifting the thermal state the hysteresis sees."
+    )
+    parameters: ClassVar[dict] = {
+        "drift": "change of the thermal state per 1000 s in units of q_ref = u_span^2 (cascade) or of the input span (EUPI base); signed"
+    }
     drift: jnp.ndarray
 
 
@@ -134,7 +141,9 @@ class ResistanceTC(Effect):
 
     name: ClassVar[str] = "resistance_tc"
     needs: ClassVar[tuple] = ("thermal",)
-    physics: ClassVar[str] = "R = R0 (1 + beta q / q_ref): at constant voltage the heating power U^2/R falls as the wire warms, so hot states are reached more slowly and saturate lower."
+    physics: ClassVar[str] = (
+        "R = R0 (1 + beta q / q_ref): at constant voltage the heating power U^2/R falls as the wire warms, so hot states are reached more slowly and saturate lower."
+    )
     parameters: ClassVar[dict] = {"beta": "relative resistance increase at q = q_ref (> 0)"}
     beta: jnp.ndarray = positive()
 
@@ -145,7 +154,9 @@ class AsymmetricCooling(Effect):
 
     name: ClassVar[str] = "asymmetric_cooling"
     needs: ClassVar[tuple] = ("thermal",)
-    physics: ClassVar[str] = "Cooling (heat loss to a still environment, latent heat of the reverse transformation) runs at a different rate than Joule heating: the rate is k1 exp(log_ratio) while the state falls."
+    physics: ClassVar[str] = (
+        "Cooling (heat loss to a still environment, latent heat of the reverse transformation) runs at a different rate than Joule heating: the rate is k1 exp(log_ratio) while the state falls."
+    )
     parameters: ClassVar[dict] = {"log_ratio": "log of cooling rate / heating rate (signed)"}
     log_ratio: jnp.ndarray
 
@@ -156,7 +167,9 @@ class NonlinearCooling(Effect):
 
     name: ClassVar[str] = "nonlinear_cooling"
     needs: ClassVar[tuple] = ("thermal",)
-    physics: ClassVar[str] = "Heat loss k1 q (1 + gamma q / q_ref): natural convection and radiation make hot states cool faster (and saturate lower) than Newton's law."
+    physics: ClassVar[str] = (
+        "Heat loss k1 q (1 + gamma q / q_ref): natural convection and radiation make hot states cool faster (and saturate lower) than Newton's law."
+    )
     parameters: ClassVar[dict] = {"gamma": "relative extra loss at q = q_ref (> 0)"}
     gamma: jnp.ndarray = positive()
 
@@ -167,7 +180,9 @@ class RateDependence(Effect):
 
     name: ClassVar[str] = "rate_dependence"
     needs: ClassVar[tuple] = ("time",)
-    physics: ClassVar[str] = "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the polymer, rate-dependent phase transformation)."
+    physics: ClassVar[str] = (
+        "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the polymer, rate-dependent phase transformation)."
+    )
     parameters: ClassVar[dict] = {"c": "threshold widening per unit normalised rate (per 100 s) (> 0)"}
     c: jnp.ndarray = positive()
 
@@ -183,9 +198,12 @@ class Creep(Effect):
         "seconds to minutes): y = (1 - g) H + g L[H]. After a step the output keeps relaxing while the input is held: "
         "towards the step (g > 0, creep) or back from an overshoot (g < 0, recovery). A relaxation is bounded: |g| <= 1 "
         "(at most the whole step creeps or overshoots) and tau lies between a few samples and the record length (a longer "
-        "tau cannot be told from a ramp, which is ambient_drift); the diagnosis fits within these bounds.")
-    parameters: ClassVar[dict] = {"g": "fraction of the output that creeps, signed, |g| <= G_MAX = 1",
-                                  "tau": "creep time constant in seconds, fitted within [TAU_MIN_SAMPLES dt, record length]"}
+        "tau cannot be told from a ramp, which is ambient_drift); the diagnosis fits within these bounds."
+    )
+    parameters: ClassVar[dict] = {
+        "g": "fraction of the output that creeps, signed, |g| <= G_MAX = 1",
+        "tau": "creep time constant in seconds, fitted within [TAU_MIN_SAMPLES dt, record length]",
+    }
     #: Bounds used when fitting (models saved with values outside them still load and run unchanged).
     G_MAX: ClassVar[float] = 1.0
     TAU_MIN_SAMPLES: ClassVar[float] = 2.0
@@ -205,8 +223,13 @@ class OutputSaturation(Effect):
 
     name: ClassVar[str] = "output_saturation"
     needs: ClassVar[tuple] = ()
-    physics: ClassVar[str] = "The stroke is bounded by the completed martensite/austenite transformation: y = m + w tanh((H - m) / w), a monotone sigmoid between m - w and m + w that tends to the identity as w grows."
-    parameters: ClassVar[dict] = {"m": "centre of the saturation map (output units)", "w": "half-width: the output stays within m +- w (> 0)"}
+    physics: ClassVar[str] = (
+        "The stroke is bounded by the completed martensite/austenite transformation: y = m + w tanh((H - m) / w), a monotone sigmoid between m - w and m + w that tends to the identity as w grows."
+    )
+    parameters: ClassVar[dict] = {
+        "m": "centre of the saturation map (output units)",
+        "w": "half-width: the output stays within m +- w (> 0)",
+    }
     m: jnp.ndarray
     w: jnp.ndarray = positive()
 
@@ -222,9 +245,12 @@ class InputWarp(Effect):
         "wire temperature follows the voltage: the phase fraction is a steep sigmoid of the drive. The play operators "
         "act on the warped input s' = (S((s - c)/b) - S(-c/b)) / (S((1 - c)/b) - S(-c/b)), S the logistic CDF and s "
         "the normalised input, which keeps the input range and puts the threshold grid where the transformation "
-        "happens; it tends to the identity as b grows.")
-    parameters: ClassVar[dict] = {"c": "centre of the transformation band (normalised input, fraction of u_span above u_ref)",
-                                  "b": "width of the band (normalised input) (> 0)"}
+        "happens; it tends to the identity as b grows."
+    )
+    parameters: ClassVar[dict] = {
+        "c": "centre of the transformation band (normalised input, fraction of u_span above u_ref)",
+        "b": "width of the band (normalised input) (> 0)",
+    }
     c: jnp.ndarray
     b: jnp.ndarray = positive()
 
@@ -241,8 +267,15 @@ class LoadDependence(Effect):
 
     name: ClassVar[str] = "load_dependence"
     needs: ClassVar[tuple] = ("load",)
-    physics: ClassVar[str] = "A heavier load stretches the actuator (offset b) and changes the recoverable stroke (gain a): y = H (1 + a l) + b l with l = (L - load_ref) / load_scale."
-    parameters: ClassVar[dict] = {"a": "relative stroke change per load_scale (signed)", "b": "offset per load_scale (signed)", "load_ref": "reference load (fixed)", "load_scale": "load scale (fixed)"}
+    physics: ClassVar[str] = (
+        "A heavier load stretches the actuator (offset b) and changes the recoverable stroke (gain a): y = H (1 + a l) + b l with l = (L - load_ref) / load_scale."
+    )
+    parameters: ClassVar[dict] = {
+        "a": "relative stroke change per load_scale (signed)",
+        "b": "offset per load_scale (signed)",
+        "load_ref": "reference load (fixed)",
+        "load_scale": "load scale (fixed)",
+    }
     a: jnp.ndarray
     b: jnp.ndarray
     load_ref: jnp.ndarray
@@ -261,15 +294,30 @@ class StrainAccumulation(Effect):
         "phi = clip(s - s(0), 0, 1) (s the normalised hysteresis input, s(0) its rest level at the record start), "
         "accumulated strain D(t) = -int_0^t phi dt / 1000 s, output y = H + c D(t). c = 0 is the base model. c enters "
         "linearly (profiled with the EUPI gains), so the effect adds no nonlinear parameter. (A recoverable fraction was "
-        "tried and dropped: every fit scored on held-out water-step data put the permanent fraction on its bound 1.)")
-    parameters: ClassVar[dict] = {"c": "output change per 1000 s at full drive (phi = 1), output units, signed (c > 0: the output falls while hot)"}
+        "tried and dropped: every fit scored on held-out water-step data put the permanent fraction on its bound 1.)"
+    )
+    parameters: ClassVar[dict] = {
+        "c": "output change per 1000 s at full drive (phi = 1), output units, signed (c > 0: the output falls while hot)"
+    }
     c: jnp.ndarray
 
 
 EFFECTS = {
     cls.name: cls
-    for cls in (Delay, SensorLag, AmbientDrift, ResistanceTC, AsymmetricCooling, NonlinearCooling, InputWarp, RateDependence, Creep, OutputSaturation,
-                LoadDependence, StrainAccumulation)
+    for cls in (
+        Delay,
+        SensorLag,
+        AmbientDrift,
+        ResistanceTC,
+        AsymmetricCooling,
+        NonlinearCooling,
+        InputWarp,
+        RateDependence,
+        Creep,
+        OutputSaturation,
+        LoadDependence,
+        StrainAccumulation,
+    )
 }
 EFFECT_NAMES = tuple(EFFECTS)
 

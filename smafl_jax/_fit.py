@@ -293,7 +293,11 @@ def init_linear(model, data, dt=None, *, weights=None):
     """
     data = as_fit_data(data, dt)
     if isinstance(weights, np.ndarray) and weights.ndim == 1:  # one array over the concatenated rows
-        weights = np.split(weights, np.cumsum([u.shape[0] for u, _, _ in data])[:-1]) if weights.shape[0] == sum(u.shape[0] for u, _, _ in data) else [weights]
+        weights = (
+            np.split(weights, np.cumsum([u.shape[0] for u, _, _ in data])[:-1])
+            if weights.shape[0] == sum(u.shape[0] for u, _, _ in data)
+            else [weights]
+        )
     weights = _as_weights(weights, data)
     part = _linear_part(model)
     if part is None:
@@ -343,7 +347,9 @@ def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True,
         ks = grid[start : start + chunk]
         if ks.size < chunk:  # pad so every chunk has one shape (one compile)
             ks = np.concatenate([ks, np.full(chunk - ks.size, ks[-1])])
-        blocks = [np.asarray(_features_k1_grid(feats, model, jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d))) for u, _, d in data]
+        blocks = [
+            np.asarray(_features_k1_grid(feats, model, jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d))) for u, _, d in data
+        ]
         for j in range(min(chunk, grid.size - start)):
             A, b = _stack_rows([blk[j] for blk in blocks], data, weights)
             if np.all(np.isfinite(A)):
@@ -539,7 +545,11 @@ def fit(
     t0 = time.perf_counter()
     k1_trainable = _has_k1(model) and bool(spec.thermal.k1)
     if init == "auto":
-        init = "profile" if (k1_trainable and _linear_part(model) is not None) else ("linear" if _linear_part(model) is not None else None)
+        init = (
+            "profile"
+            if (k1_trainable and _linear_part(model) is not None)
+            else ("linear" if _linear_part(model) is not None else None)
+        )
     if init == "profile":
         say(f"initialiser: profiling k1 ({k1_grid if np.ndim(k1_grid) == 0 else len(k1_grid)} candidates, gains by bounded LS)")
         model, info["profile"] = init_profile(model, data, weights=weights, k1_grid=k1_grid, progress=progress)
@@ -581,7 +591,9 @@ def fit(
             "kept the initialiser's model"
         )
         return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)
-    message = "converged" if ok else f"{solver} stopped after {n_steps} steps without meeting its tolerance (max_steps={max_steps})"
+    message = (
+        "converged" if ok else f"{solver} stopped after {n_steps} steps without meeting its tolerance (max_steps={max_steps})"
+    )
     return FitResult(fitted, loss, n_steps, ok, message, solver, init_loss, info)
 
 

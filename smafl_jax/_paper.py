@@ -30,8 +30,18 @@ PAPER_VALUES = {
     "k1": 0.04988,
     "k2": 0.04172,
     "joule_max_error_mm": 0.510,
-    "e_mean_sim": {("composite", "sine"): 0.0027, ("composite", "step"): 0.0004, ("pid", "sine"): 0.0030, ("pid", "step"): 0.0009},
-    "e_mean_exp": {("composite", "sine"): 0.0517, ("composite", "step"): 0.0326, ("pid", "sine"): 0.0934, ("pid", "step"): 0.1029},
+    "e_mean_sim": {
+        ("composite", "sine"): 0.0027,
+        ("composite", "step"): 0.0004,
+        ("pid", "sine"): 0.0030,
+        ("pid", "step"): 0.0009,
+    },
+    "e_mean_exp": {
+        ("composite", "sine"): 0.0517,
+        ("composite", "step"): 0.0326,
+        ("pid", "sine"): 0.0934,
+        ("pid", "step"): 0.1029,
+    },
 }
 
 
@@ -124,7 +134,12 @@ def section_eupi(recs, out, quick):
         ],
         "EUPI in the voltage domain (paper figs. 9-10)",
     )
-    sj.save_model(out / "eupi_fit.json", res.model, metrics={"train": m_tr, "validation": m_va}, solver={"converged": res.converged, "n_steps": res.n_steps, "message": res.message})
+    sj.save_model(
+        out / "eupi_fit.json",
+        res.model,
+        metrics={"train": m_tr, "validation": m_va},
+        solver={"converged": res.converged, "n_steps": res.n_steps, "message": res.message},
+    )
     return {
         "train": m_tr,
         "validation": m_va,
@@ -140,7 +155,9 @@ def section_joule(recs, out, quick):
     import smafl_jax as sj
 
     rec = recs["steps"]
-    paper = sj.JouleLag(thermal=sj.JouleThermal(k1=jnp.asarray(sj.PAPER_K1), k2=jnp.asarray(sj.PAPER_K2)), offset=jnp.asarray(float(rec.y[0])))
+    paper = sj.JouleLag(
+        thermal=sj.JouleThermal(k1=jnp.asarray(sj.PAPER_K1), k2=jnp.asarray(sj.PAPER_K2)), offset=jnp.asarray(float(rec.y[0]))
+    )
     res = sj.fit(paper, rec, max_steps=100 if quick else 400)
     yhat = np.asarray(sj.simulate(res.model, rec.u, rec.dt))
     m = sj.metrics(rec.y, yhat)
@@ -250,7 +267,14 @@ def _write_eupi_joule_cascade(rep, s1, s2, s3):
         ["", "K1 (1/s)", "K2", "time constant 1/K1 (s)", "max abs error (mm)", "RMSE (mm)"],
         [
             ["this run (fitted)", s2["k1"], s2["k2"], 1 / s2["k1"], s2["metrics"]["max_abs_error"], s2["metrics"]["rmse"]],
-            ["paper's K1, K2 on this record", P["k1"], P["k2"], 1 / P["k1"], s2["paper_params_metrics"]["max_abs_error"], s2["paper_params_metrics"]["rmse"]],
+            [
+                "paper's K1, K2 on this record",
+                P["k1"],
+                P["k2"],
+                1 / P["k1"],
+                s2["paper_params_metrics"]["max_abs_error"],
+                s2["paper_params_metrics"]["rmse"],
+            ],
             ["paper (own rig)", P["k1"], P["k2"], 1 / P["k1"], P["joule_max_error_mm"], "–"],
         ],
     )
@@ -273,7 +297,10 @@ def _write_eupi_joule_cascade(rep, s1, s2, s3):
         "held out. K2 is not identifiable from displacement in the cascade (the hysteresis sees sqrt(theta K1/K2), "
         "in which K2 cancels) and is held at the paper's value." + truth_txt
     )
-    rep.table(METRIC_HEADERS, [_metric_row("train (main loop + steps)", s3["train"]), _metric_row("held out (minor loop)", s3["validation"])])
+    rep.table(
+        METRIC_HEADERS,
+        [_metric_row("train (main loop + steps)", s3["train"]), _metric_row("held out (minor loop)", s3["validation"])],
+    )
     for f in s3["figures"]:
         rep.figure(f, "Cascade: measured vs model over time, with the error below")
 
@@ -318,11 +345,21 @@ def section_control(plant, identified, out, quick):
             comp = IICompensator(identified, g["K"]) if ctrl == "composite" else None
             row = {"reference": rname, "controller": ctrl}
             for window, start in (("full", 0.0), ("settled", settle)):
-                loop = ClosedLoop(plant=plant, pid=PID(g["kp"], g["ki"], g["kd"]), reference=jnp.asarray(ref), compensator=comp, eval_start=jnp.asarray(start))
+                loop = ClosedLoop(
+                    plant=plant,
+                    pid=PID(g["kp"], g["ki"], g["kd"]),
+                    reference=jnp.asarray(ref),
+                    compensator=comp,
+                    eval_start=jnp.asarray(start),
+                )
                 m, tr = simulate_closed_loop(loop, dt)
                 row[f"e_mean_{window}_mm"] = float(m["e_mean_mm"])
                 if window == "full":
-                    row.update(rmse_mm=float(m["rmse_mm"]), max_abs_error_mm=float(m["max_abs_error_mm"]), saturated_fraction=float(m["saturated_fraction"]))
+                    row.update(
+                        rmse_mm=float(m["rmse_mm"]),
+                        max_abs_error_mm=float(m["max_abs_error_mm"]),
+                        saturated_fraction=float(m["saturated_fraction"]),
+                    )
                     trajs[(rname, ctrl)] = {k: np.asarray(v) for k, v in tr.items()}
             row["paper_sim_e_mean_mm"] = PAPER_VALUES["e_mean_sim"].get((ctrl, rname))
             row["paper_exp_e_mean_mm"] = PAPER_VALUES["e_mean_exp"].get((ctrl, rname))
@@ -357,9 +394,27 @@ def _write_control(rep, s5):
     rep.heading("5. Closed-loop control: PID vs composite PID (paper figs. 14-15)")
     rep.bullets(CONTROL_ASSUMPTIONS)
     rep.table(
-        ["reference", "controller", "e_mean (mm)", "e_mean settled (mm)", "paper sim (mm)", "paper exp (mm)", "RMSE (mm)", "saturated"],
         [
-            [r["reference"], r["controller"], r["e_mean_full_mm"], r["e_mean_settled_mm"], r["paper_sim_e_mean_mm"], r["paper_exp_e_mean_mm"], r["rmse_mm"], r["saturated_fraction"]]
+            "reference",
+            "controller",
+            "e_mean (mm)",
+            "e_mean settled (mm)",
+            "paper sim (mm)",
+            "paper exp (mm)",
+            "RMSE (mm)",
+            "saturated",
+        ],
+        [
+            [
+                r["reference"],
+                r["controller"],
+                r["e_mean_full_mm"],
+                r["e_mean_settled_mm"],
+                r["paper_sim_e_mean_mm"],
+                r["paper_exp_e_mean_mm"],
+                r["rmse_mm"],
+                r["saturated_fraction"],
+            ]
             for r in s5["rows"]
         ],
     )
@@ -437,9 +492,14 @@ def run_paper(out, *, quick=False, datasets=None, real=None, seed=0):
     summary["quick"] = quick
     summary["elapsed_s"] = time.perf_counter() - t_start
     summary["versions"] = _versions()
-    summary["paper_values"] = {k: (v if not isinstance(v, dict) else {f"{a}/{b}": x for (a, b), x in v.items()}) for k, v in PAPER_VALUES.items()}
+    summary["paper_values"] = {
+        k: (v if not isinstance(v, dict) else {f"{a}/{b}": x for (a, b), x in v.items()}) for k, v in PAPER_VALUES.items()
+    }
     atomic_write_json(out / "paper.json", summary)
-    print(f"wrote {out / 'report.md'}, {out / 'report.html'} and {out / 'paper.json'} ({summary['elapsed_s']:.0f} s)", file=sys.stderr)
+    print(
+        f"wrote {out / 'report.md'}, {out / 'report.html'} and {out / 'paper.json'} ({summary['elapsed_s']:.0f} s)",
+        file=sys.stderr,
+    )
     return summary
 
 
@@ -462,8 +522,18 @@ def _write_summary(rep, r, quick, elapsed):
         + f" Run time: {elapsed:.0f} s."
     )
     rows = [
-        ["EUPI error ratio e_r (eq. 3)", "6.3 %", f"{fmt(r['eupi']['train']['e_r_percent'], 3)} % (train), {fmt(r['eupi']['validation']['e_r_percent'], 3)} % (held out)", "in kind"],
-        ["Joule model K1 (1/s)", "0.04988", f"{fmt(r['cascade']['k1'])} (cascade), {fmt(r['joule']['k1'])} (lag alone)", "own rig differs; truth recovered" if r["cascade"].get("k1_truth") else "–"],
+        [
+            "EUPI error ratio e_r (eq. 3)",
+            "6.3 %",
+            f"{fmt(r['eupi']['train']['e_r_percent'], 3)} % (train), {fmt(r['eupi']['validation']['e_r_percent'], 3)} % (held out)",
+            "in kind",
+        ],
+        [
+            "Joule model K1 (1/s)",
+            "0.04988",
+            f"{fmt(r['cascade']['k1'])} (cascade), {fmt(r['joule']['k1'])} (lag alone)",
+            "own rig differs; truth recovered" if r["cascade"].get("k1_truth") else "–",
+        ],
         ["Joule model max error (mm)", "0.510", fmt(r["joule"]["metrics"]["max_abs_error"], 3), "lag alone is too simple here"],
         ["cascade held-out e_r", "–", f"{fmt(r['cascade']['validation']['e_r_percent'], 3)} %", "new"],
     ]
@@ -471,8 +541,12 @@ def _write_summary(rep, r, quick, elapsed):
         c = {(x["controller"], x["reference"]): x["e_mean_full_mm"] for x in r["control"]["rows"]}
         for ref in ("sine", "step"):
             rows.append(
-                [f"e_mean {ref}: composite / PID (mm)", f"{PAPER_VALUES['e_mean_sim'][('composite', ref)]} / {PAPER_VALUES['e_mean_sim'][('pid', ref)]}",
-                 f"{fmt(c[('composite', ref)], 3)} / {fmt(c[('pid', ref)], 3)}", "ranking " + ("reproduced" if r["control"]["composite_wins"][ref] else "not reproduced")]
+                [
+                    f"e_mean {ref}: composite / PID (mm)",
+                    f"{PAPER_VALUES['e_mean_sim'][('composite', ref)]} / {PAPER_VALUES['e_mean_sim'][('pid', ref)]}",
+                    f"{fmt(c[('composite', ref)], 3)} / {fmt(c[('pid', ref)], 3)}",
+                    "ranking " + ("reproduced" if r["control"]["composite_wins"][ref] else "not reproduced"),
+                ]
             )
     for key, summarise in SUMMARY_ROWS:
         if key in r:
@@ -489,7 +563,9 @@ SECTIONS = [
     (
         "control",
         "closed-loop control (figs. 14-15)",
-        lambda c: section_control(c["truth"] or c["results"]["cascade"]["model"], c["results"]["cascade"]["model"], c["out"], c["quick"]),
+        lambda c: section_control(
+            c["truth"] or c["results"]["cascade"]["model"], c["results"]["cascade"]["model"], c["out"], c["quick"]
+        ),
     ),
 ]
 WRITERS = [("control", _write_control)]
@@ -498,15 +574,13 @@ SUMMARY_ROWS = []
 
 def section_diagnosis(recs, out, quick, real):
     """Residual diagnosis: the bundled record (nothing hidden in it) and, when present, real SMA data."""
-    import smafl_jax as sj
-
-    from ._diagnose import diagnose
-    from ._io import prepare_out_dir
-    from ._report import write_diagnosis
-
     import dataclasses
 
-    from ._diagnose import synthetic_effect_record
+    import smafl_jax as sj
+
+    from ._diagnose import diagnose, synthetic_effect_record
+    from ._io import prepare_out_dir
+    from ._report import write_diagnosis
 
     jobs = [("bundled main loop (synthetic, no hidden effect)", recs["main_loop"])]
     if not quick:
@@ -518,10 +592,17 @@ def section_diagnosis(recs, out, quick, real):
         jobs.append(("bundled drives + an undeclared effect (creep, seeded)", hidden))
     forc = Path(real) / "sma_wing_forc_train.csv"
     if forc.exists():
-        jobs.append(("real SMA wire, reversal branches (measured)", sj.load_record(forc, input="voltage_V", output="displacement")))
+        jobs.append(
+            ("real SMA wire, reversal branches (measured)", sj.load_record(forc, input="voltage_V", output="displacement"))
+        )
     water = Path(real) / "niti_wire_water_step_01.csv"
     if water.exists() and not quick:
-        jobs.append(("real NiTi wire, water-bath temperature steps (measured)", sj.load_record(water, input="temperature_front_C", output="length_signal")))
+        jobs.append(
+            (
+                "real NiTi wire, water-bath temperature steps (measured)",
+                sj.load_record(water, input="temperature_front_C", output="length_signal"),
+            )
+        )
     rows = []
     for label, rec in jobs:
         sub = prepare_out_dir(out / f"diagnosis_{rec.name}", announce=False)
@@ -555,7 +636,14 @@ def _write_diagnosis(rep, s6):
     rep.table(
         ["record", "selected", "held-out RMSE before", "after", "held-out e_r % before", "after"],
         [
-            [r["record"], ", ".join(r["selected"]) or "none", r["base_heldout_rmse"], r["extended_heldout_rmse"], r["base_heldout_e_r_percent"], r["extended_heldout_e_r_percent"]]
+            [
+                r["record"],
+                ", ".join(r["selected"]) or "none",
+                r["base_heldout_rmse"],
+                r["extended_heldout_rmse"],
+                r["base_heldout_e_r_percent"],
+                r["extended_heldout_e_r_percent"],
+            ]
             for r in s6["rows"]
         ],
     )
@@ -572,12 +660,19 @@ def _write_diagnosis(rep, s6):
                 f"5 % is {'reached' if e < 5 else 'not reached'} (the paper's 6.3 % was on its own, gentler loop)."
             )
     if not s6["real_data_present"]:
-        rep.text("The real measured records (../shared/data/real) were not found beside the repository, so only the bundled record was diagnosed.")
+        rep.text(
+            "The real measured records (../shared/data/real) were not found beside the repository, so only the bundled record was diagnosed."
+        )
 
 
 def _summary_diagnosis(s6):
     return [
-        [f"diagnosis: {r['file']}", "–", f"{', '.join(r['selected']) or 'none'}; held-out e_r {fmt(r['base_heldout_e_r_percent'], 3)} -> {fmt(r['extended_heldout_e_r_percent'], 3)} %", "new"]
+        [
+            f"diagnosis: {r['file']}",
+            "–",
+            f"{', '.join(r['selected']) or 'none'}; held-out e_r {fmt(r['base_heldout_e_r_percent'], 3)} -> {fmt(r['extended_heldout_e_r_percent'], 3)} %",
+            "new",
+        ]
         for r in s6["rows"]
     ]
 
@@ -594,8 +689,20 @@ def section_bayes(recs, out, quick, fit_json, seed):
     sub = out / "posterior"
     steps = 400 if quick else 3000
     argv = [
-        "sample", recs["main_loop"].path, "--fit", str(fit_json), "--out", str(sub), "--heldout", recs["minor_loop"].path,
-        "--steps", str(steps), "--seed", str(seed), "--restart", "--no-progress",
+        "sample",
+        recs["main_loop"].path,
+        "--fit",
+        str(fit_json),
+        "--out",
+        str(sub),
+        "--heldout",
+        recs["minor_loop"].path,
+        "--steps",
+        str(steps),
+        "--seed",
+        str(seed),
+        "--restart",
+        "--no-progress",
     ]
     rc = cli_main(argv)
     if rc != 0:
@@ -604,7 +711,9 @@ def section_bayes(recs, out, quick, fit_json, seed):
     return {
         "summary": summary,
         "steps": steps,
-        "figures": [str(sub / f) for f in ("predictive_time.png", "predictive_loop.png", "corner.png", "trace.png") if (sub / f).exists()],
+        "figures": [
+            str(sub / f) for f in ("predictive_time.png", "predictive_loop.png", "corner.png", "trace.png") if (sub / f).exists()
+        ],
     }
 
 
@@ -619,7 +728,11 @@ def _write_bayes(rep, s4):
     )
     rows = [[name, p["mean"], p["sd"], p["q025"], p["q975"], p.get("ess")] for name, p in s["parameters"].items()]
     for name, p in s.get("derived", {}).items():
-        rows.append([name, p.get("mean"), p.get("sd"), p.get("q025"), p.get("q975"), "–"] if "mean" in p else [name, "not identified", "–", "–", "–", "–"])
+        rows.append(
+            [name, p.get("mean"), p.get("sd"), p.get("q025"), p.get("q975"), "–"]
+            if "mean" in p
+            else [name, "not identified", "–", "–", "–", "–"]
+        )
     rep.table(["parameter", "mean", "sd", "2.5 %", "97.5 %", "ESS"], rows)
     cover = s.get("heldout_coverage_95")
     if cover is not None:
@@ -634,9 +747,23 @@ def _summary_bayes(s4):
     p = s4["summary"]["parameters"].get("thermal.k1")
     if not p:
         return []
-    return [["posterior K1, 95 % interval (1/s)", "– (point estimate only)", f"{fmt(p['mean'])} [{fmt(p['q025'])}, {fmt(p['q975'])}]", "new"]]
+    return [
+        [
+            "posterior K1, 95 % interval (1/s)",
+            "– (point estimate only)",
+            f"{fmt(p['mean'])} [{fmt(p['q025'])}, {fmt(p['q975'])}]",
+            "new",
+        ]
+    ]
 
 
-SECTIONS.insert(3, ("bayes", "posterior sampling", lambda c: section_bayes(c["recs"], c["out"], c["quick"], c["results"]["cascade"]["fit_json"], c["seed"])))
+SECTIONS.insert(
+    3,
+    (
+        "bayes",
+        "posterior sampling",
+        lambda c: section_bayes(c["recs"], c["out"], c["quick"], c["results"]["cascade"]["fit_json"], c["seed"]),
+    ),
+)
 WRITERS.insert(0, ("bayes", _write_bayes))
 SUMMARY_ROWS.insert(0, ("bayes", _summary_bayes))

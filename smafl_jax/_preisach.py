@@ -49,8 +49,17 @@ from . import _config  # noqa: F401
 from ._constraints import as_float_array, positive
 from ._io import register_model
 
-__all__ = ["Preisach", "preisach_levels", "tikhonov_matrix", "fit_preisach", "cv_fit_preisach", "relay_loop", "everett_weights",
-           "fit_everett", "forc_shaped"]
+__all__ = [
+    "Preisach",
+    "preisach_levels",
+    "tikhonov_matrix",
+    "fit_preisach",
+    "cv_fit_preisach",
+    "relay_loop",
+    "everett_weights",
+    "fit_everett",
+    "forc_shaped",
+]
 
 _INITS = ("descended", "zero")
 
@@ -112,9 +121,17 @@ class Preisach(eqx.Module):
             raise ValueError(f"input range must be finite with u_max > u_min, got [{u_min}, {u_max}]")
         lv = preisach_levels(u_min, u_max, n_levels)
         n = lv.size
-        return cls(w=jnp.zeros(n * (n + 1) // 2), offset=jnp.asarray(0.0), gain=jnp.asarray(0.0), levels=jnp.asarray(lv),
-                   u_ref=jnp.asarray(u_min), u_span=jnp.asarray(u_max - u_min),
-                   width=jnp.asarray((u_max - u_min) / n if ramp else 0.0), init=init, linear=bool(linear))
+        return cls(
+            w=jnp.zeros(n * (n + 1) // 2),
+            offset=jnp.asarray(0.0),
+            gain=jnp.asarray(0.0),
+            levels=jnp.asarray(lv),
+            u_ref=jnp.asarray(u_min),
+            u_span=jnp.asarray(u_max - u_min),
+            width=jnp.asarray((u_max - u_min) / n if ramp else 0.0),
+            init=init,
+            linear=bool(linear),
+        )
 
     # -- structure -------------------------------------------------------
     @property
@@ -193,7 +210,7 @@ def _switch_fractions(u, a, b, width):
     """Per relay at input ``u``: the fraction forced up (``lo``, by the up threshold) and allowed up (``hi``)."""
     positive_width = width > 0
     safe = jnp.where(positive_width, width, 1.0)  # no 0/0 in the untaken branch (its gradient would be NaN)
-    ramp = lambda t: jnp.clip((u - t) / safe + 0.5, 0.0, 1.0)  # noqa: E731
+    ramp = lambda t: jnp.clip((u - t) / safe + 0.5, 0.0, 1.0)
     lo = jnp.where(positive_width, ramp(a), (u >= a).astype(u.dtype))
     hi = jnp.where(positive_width, ramp(b), (u > b).astype(u.dtype))
     return lo, hi
@@ -228,8 +245,8 @@ def tikhonov_matrix(n):
             if nb in index:
                 rows.append((k, index[nb]))
     D = np.zeros((len(rows), len(index)))
-    for r, (k, l) in enumerate(rows):
-        D[r, k], D[r, l] = -1.0, 1.0
+    for r, (k, m) in enumerate(rows):
+        D[r, k], D[r, m] = -1.0, 1.0
     return D
 
 
@@ -268,7 +285,7 @@ def solve_penalised(A, y, nonneg, P, lam):
     Rs = np.column_stack([R, -R[:, unbounded]])
     z, _ = nnls(Rs, rhs, maxiter=50 * Rs.shape[1])
     x = z[: R.shape[1]].copy()
-    x[unbounded] -= z[R.shape[1]:]
+    x[unbounded] -= z[R.shape[1] :]
     free = ~nonneg | (x > 1e-10 * max(np.max(np.abs(x)), 1e-300))
     Af = A[:, free]
     Gf = Af.T @ Af + lam * P[np.ix_(free, free)]
@@ -299,8 +316,16 @@ def fit_preisach(model, segments, *, lam=1e-2, ridge=0.0):
     x, dof = solve_penalised(A, y, model.nonnegative_columns(), P, 1.0)
     fitted = model.with_linear_weights(jnp.asarray(x))
     res = A @ x - y
-    return fitted, {"sse": float(res @ res), "n": int(A.shape[0]), "dof": dof, "lam": lam, "ridge": ridge,
-                    "n_levels": model.n_levels, "width": float(model.width), "n_nonzero": int(np.sum(x[: model.n_relays] > 0))}
+    return fitted, {
+        "sse": float(res @ res),
+        "n": int(A.shape[0]),
+        "dof": dof,
+        "lam": lam,
+        "ridge": ridge,
+        "n_levels": model.n_levels,
+        "width": float(model.width),
+        "n_nonzero": int(np.sum(x[: model.n_relays] > 0)),
+    }
 
 
 #: Interpolants of the measured FORC surface in the reversal input (`everett_weights`).
@@ -341,7 +366,9 @@ def everett_weights(segments, levels, interp="spline"):
         raise ValueError(f"interp must be one of {EVERETT_INTERPOLANTS}, got {interp!r}")
     segs = [_as_seg(s) for s in segments]
     if not forc_shaped(segs):
-        raise ValueError("Everett identification needs first-order reversal curves: each segment rising to its maximum, then falling")
+        raise ValueError(
+            "Everett identification needs first-order reversal curves: each segment rising to its maximum, then falling"
+        )
     lv = np.asarray(levels, float)
     n = lv.size
     h = (lv[-1] - lv[0]) / (n - 1) if n > 1 else 1.0
@@ -373,7 +400,7 @@ def everett_weights(segments, levels, interp="spline"):
             F[q:, q] = np.interp(at, xs, vs)
     # relay (i, j) is up after rising to edge p and falling to edge q iff i < p and j < q: F = offset + cumulative sums
     i, j = np.tril_indices(n)
-    Fi = lambda p, q: F[p, np.minimum(q, p)]  # noqa: E731  (falling to q >= p changes nothing)
+    Fi = lambda p, q: F[p, np.minimum(q, p)]
     w = Fi(i + 1, j + 1) - Fi(i + 1, j) - Fi(i, j + 1) + Fi(i, j)
     return w, float(F[0, 0])
 
@@ -387,9 +414,18 @@ def fit_everett(model, segments, interp="spline"):
     A, y = design(fitted, segments)
     res = A @ fitted.linear_weights() - y
     n_desc = sum(int(len(_as_seg(s)[0]) - np.argmax(_as_seg(s)[0])) for s in segments)
-    return fitted, {"sse": float(res @ res), "n": int(A.shape[0]), "dof": float(min(n_desc, model.n_relays + 1)), "lam": None,
-                    "ridge": None, "method": f"everett-{interp}", "n_levels": model.n_levels, "width": float(model.width),
-                    "n_nonzero": int(np.sum(np.abs(w) > 0)), "n_negative": int(np.sum(w < 0))}
+    return fitted, {
+        "sse": float(res @ res),
+        "n": int(A.shape[0]),
+        "dof": float(min(n_desc, model.n_relays + 1)),
+        "lam": None,
+        "ridge": None,
+        "method": f"everett-{interp}",
+        "n_levels": model.n_levels,
+        "width": float(model.width),
+        "n_nonzero": int(np.sum(np.abs(w) > 0)),
+        "n_negative": int(np.sum(w < 0)),
+    }
 
 
 #: Default inner-CV grids: levels per input range and penalty per sample.
@@ -403,8 +439,22 @@ def _as_seg(seg):
     return seg[0], seg[1], (seg[2] if len(seg) > 2 else np.ones(len(seg[0]), bool))
 
 
-def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_grid=LAM_GRID, ridge=0.0, linear=False,
-                    init="descended", ramp=True, everett=EVERETT_INTERPOLANTS, criterion="rmse", keep=None, verbose=False):
+def cv_fit_preisach(
+    segments,
+    u_min,
+    u_max,
+    *,
+    n_levels_grid=N_LEVELS_GRID,
+    lam_grid=LAM_GRID,
+    ridge=0.0,
+    linear=False,
+    init="descended",
+    ramp=True,
+    everett=EVERETT_INTERPOLANTS,
+    criterion="rmse",
+    keep=None,
+    verbose=False,
+):
     """Preisach fit with ``(n_levels, lam)`` chosen by inner cross-validation on ``segments`` only.
 
     Inner folds: leave one segment out, except the segments in ``keep`` (default:
@@ -455,24 +505,44 @@ def cv_fit_preisach(segments, u_min, u_max, *, n_levels_grid=N_LEVELS_GRID, lam_
                 for i in va:
                     r = blocks[i][0] @ x - blocks[i][1]
                     sse, cnt, mx = sse + float(r @ r), cnt + r.size, max(mx, float(np.max(np.abs(r), initial=0.0)))
-            row = {"n_levels": int(n), "lam": float(lam), "method": "penalised", "cv_rmse": float(np.sqrt(sse / max(cnt, 1))), "cv_max_abs": mx}
+            row = {
+                "n_levels": int(n),
+                "lam": float(lam),
+                "method": "penalised",
+                "cv_rmse": float(np.sqrt(sse / max(cnt, 1))),
+                "cv_max_abs": mx,
+            }
             table.append(row)
             if verbose:
-                print(f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}", file=sys.stderr, flush=True)
+                print(
+                    f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}",
+                    file=sys.stderr,
+                    flush=True,
+                )
             if best is None or row[key] < best[key]:
                 best = row
         use_everett = everett and not linear and inner.startswith("leave-one") and forc_shaped(segs)
-        for interp in (everett if use_everett else ()):
+        for interp in everett if use_everett else ():
             sse, cnt, mx = 0.0, 0, 0.0
             for tr, va in folds:
                 x = fit_everett(m0, [segs[i] for i in tr], interp)[0].linear_weights()
                 for i in va:
                     r = blocks[i][0] @ np.asarray(x) - blocks[i][1]
                     sse, cnt, mx = sse + float(r @ r), cnt + r.size, max(mx, float(np.max(np.abs(r), initial=0.0)))
-            row = {"n_levels": int(n), "lam": None, "method": f"everett-{interp}", "cv_rmse": float(np.sqrt(sse / max(cnt, 1))), "cv_max_abs": mx}
+            row = {
+                "n_levels": int(n),
+                "lam": None,
+                "method": f"everett-{interp}",
+                "cv_rmse": float(np.sqrt(sse / max(cnt, 1))),
+                "cv_max_abs": mx,
+            }
             table.append(row)
             if verbose:
-                print(f"  preisach inner CV: n_levels {n}, everett-{interp}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}", file=sys.stderr, flush=True)
+                print(
+                    f"  preisach inner CV: n_levels {n}, everett-{interp}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}",
+                    file=sys.stderr,
+                    flush=True,
+                )
             if row[key] < best[key]:
                 best = row
     full = [_as_seg(s) for s in segments]

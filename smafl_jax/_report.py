@@ -16,7 +16,13 @@ def versions():
 
     from . import __version__
 
-    return {"smafl_jax": __version__, "jax": jax.__version__, "equinox": equinox.__version__, "numpy": np.__version__, "scipy": scipy.__version__}
+    return {
+        "smafl_jax": __version__,
+        "jax": jax.__version__,
+        "equinox": equinox.__version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+    }
 
 
 def _fit_doc(rec, res, which, deployed=False):
@@ -24,17 +30,36 @@ def _fit_doc(rec, res, which, deployed=False):
     extra = {}
     if deployed:
         # the deployed model has no held-out data left: its validation figures are those of the same structure fitted on the split
-        extra = {"refit": {"fitted_on": res["deployed"]["fitted_on"], "segments": res["deployed"]["segments"],
-                           "rmse_all_samples": res["deployed"][f"{'base' if which == 'base' else 'extended'}_rmse_all"],
-                           "validation_metrics_from": f"{which}_fit_train.json (same structure fitted on the training split only)"}}
+        extra = {
+            "refit": {
+                "fitted_on": res["deployed"]["fitted_on"],
+                "segments": res["deployed"]["segments"],
+                "rmse_all_samples": res["deployed"][f"{'base' if which == 'base' else 'extended'}_rmse_all"],
+                "validation_metrics_from": f"{which}_fit_train.json (same structure fitted on the training split only)",
+            }
+        }
     return {
         "metrics": {"train": part["train"], "validation": part["heldout"]},
         **extra,
-        "data": {"file": rec.name + ".csv" if rec.path else rec.name, "path": rec.path, "sha256": rec.sha256, "input_column": rec.input_name,
-                 "output_column": rec.output_name, "sample_time_s": rec.dt, "n_samples": len(rec)},
-        "settings": {"command": "diagnose", "split": res["split"], "effects": part.get("effects", []), "base_rule": res["base"]["rule"]},
+        "data": {
+            "file": rec.name + ".csv" if rec.path else rec.name,
+            "path": rec.path,
+            "sha256": rec.sha256,
+            "input_column": rec.input_name,
+            "output_column": rec.output_name,
+            "sample_time_s": rec.dt,
+            "n_samples": len(rec),
+        },
+        "settings": {
+            "command": "diagnose",
+            "split": res["split"],
+            "effects": part.get("effects", []),
+            "base_rule": res["base"]["rule"],
+        },
         "versions": versions(),
-        "solver": {"method": "variable projection: bounded least squares for the EUPI gains, Nelder-Mead for thermal/effect parameters"},
+        "solver": {
+            "method": "variable projection: bounded least squares for the EUPI gains, Nelder-Mead for thermal/effect parameters"
+        },
     }
 
 
@@ -79,44 +104,72 @@ def _plot(path, split, model_sim, title):
 
 def _report_md(rec, res):
     b, x = res["base"], res["extended"]
-    L = [f"# Diagnosis of `{rec.name}`", "",
-         f"- Base model: {b['rule']}", f"- Split: {res['split']['rule']}",
-         *([f"- **Warning:** {res['split']['coverage']['warning']}"] if res["split"].get("coverage", {}).get("warning") else []),
-         f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**", "",
-         "| model | train RMSE | held-out RMSE | held-out e_r (%) |", "|---|---|---|---|",
-         f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
-         f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |", "",
-         "## Base residuals", ""]
+    L = [
+        f"# Diagnosis of `{rec.name}`",
+        "",
+        f"- Base model: {b['rule']}",
+        f"- Split: {res['split']['rule']}",
+        *([f"- **Warning:** {res['split']['coverage']['warning']}"] if res["split"].get("coverage", {}).get("warning") else []),
+        f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**",
+        "",
+        "| model | train RMSE | held-out RMSE | held-out e_r (%) |",
+        "|---|---|---|---|",
+        f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
+        f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |",
+        "",
+        "## Base residuals",
+        "",
+    ]
     for part in ("train", "heldout"):
         w = res["residuals"][part]["whiteness"]
         lb = w["ljung_box"] or {}
-        L.append(f"- {part}: Ljung-Box Q = {lb.get('Q', float('nan')):.1f} (p = {lb.get('p_value', float('nan')):.2g}); "
-                 f"{100 * w['acf_fraction_outside']:.0f} % of ACF lags outside +-{w['acf_bound']:.3f}; "
-                 f"max |ccf with input| {w['ccf_max_abs']:.2f} at lag {w['ccf_argmax_lag']}")
+        L.append(
+            f"- {part}: Ljung-Box Q = {lb.get('Q', float('nan')):.1f} (p = {lb.get('p_value', float('nan')):.2g}); "
+            f"{100 * w['acf_fraction_outside']:.0f} % of ACF lags outside +-{w['acf_bound']:.3f}; "
+            f"max |ccf with input| {w['ccf_max_abs']:.2f} at lag {w['ccf_argmax_lag']}"
+        )
     corr = res["residuals"]["train"]["signal_correlations"]
-    L += ["", "Correlation of the training residual with candidate signals (p on a Bartlett-effective n):", "",
-          "| signal | corr | n_eff | p |", "|---|---|---|---|"]
+    L += [
+        "",
+        "Correlation of the training residual with candidate signals (p on a Bartlett-effective n):",
+        "",
+        "| signal | corr | n_eff | p |",
+        "|---|---|---|---|",
+    ]
     for k in sorted(corr, key=lambda k: -abs(corr[k]["corr"])):
         L.append(f"| {k} | {corr[k]['corr']:+.3f} | {corr[k]['n_eff']:.0f} | {corr[k]['p_value']:.2g} |")
-    L += ["", "## Candidate effects (ranked by score-test evidence)", "",
-          "| effect | partial R2 | p | fitted | held-out RMSE | gain | dBIC | accepted | parameters |", "|---|---|---|---|---|---|---|---|---|"]
+    L += [
+        "",
+        "## Candidate effects (ranked by score-test evidence)",
+        "",
+        "| effect | partial R2 | p | fitted | held-out RMSE | gain | dBIC | accepted | parameters |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for c in res["candidates"]:
         ev = c["evidence"]
         if c.get("fitted"):
             par = ", ".join(f"{k}={v:.4g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in c["parameters"].items())
-            L.append(f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
-                     f"{c['delta_bic']:.1f} | {c['accepted']} | {par} |")
+            L.append(
+                f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
+                f"{c['delta_bic']:.1f} | {c['accepted']} | {par} |"
+            )
         else:
             L.append(f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | no | | | | | |")
     s = res.get("strongest_remaining_correlate")
     if s:
-        L += ["", f"Strongest remaining held-out residual correlate: `{s['signal']}` (corr {s['corr']:+.3f}, p {s['p_value']:.2g})."]
+        L += [
+            "",
+            f"Strongest remaining held-out residual correlate: `{s['signal']}` (corr {s['corr']:+.3f}, p {s['p_value']:.2g}).",
+        ]
     d = res.get("deployed")
     if d:
-        L += ["", f"Deployed models (`base_fit.json`, `extended_fit.json`): the same structures refitted on {d['fitted_on']} "
-                  f"({d['n_samples']} samples; RMSE on them: base {d['base_rmse_all']:.4g}, extended {d['extended_rmse_all']:.4g}). "
-                  "Use them to predict new data; the held-out figures above are those of the split fits "
-                  "(`base_fit_train.json`, `extended_fit_train.json`)."]
+        L += [
+            "",
+            f"Deployed models (`base_fit.json`, `extended_fit.json`): the same structures refitted on {d['fitted_on']} "
+            f"({d['n_samples']} samples; RMSE on them: base {d['base_rmse_all']:.4g}, extended {d['extended_rmse_all']:.4g}). "
+            "Use them to predict new data; the held-out figures above are those of the split fits "
+            "(`base_fit_train.json`, `extended_fit_train.json`).",
+        ]
     L += ["", "Plots: `residuals_before.png` (base model), `residuals_after.png` (extended model), both the split fits.", ""]
     return "\n".join(L)
 
@@ -139,9 +192,14 @@ def write_diagnosis(out, rec, res, base, ext, split):
         save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base"))
         save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
     # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
-    wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m  # noqa: E731
+    wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m
     _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model")
-    _plot(out / "residuals_after.png", split, lambda s: simulate_segment(wrap(ext), s), f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})")
+    _plot(
+        out / "residuals_after.png",
+        split,
+        lambda s: simulate_segment(wrap(ext), s),
+        f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})",
+    )
     atomic_write_text(out / "report.md", _report_md(rec, res))
     if arrays is not None:
         res["_residual_arrays"] = arrays

@@ -77,7 +77,19 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
     raise UserInputError(f"unknown model {kind!r}; choose one of {MODELS}")
 
 
-def fit_record(record, *, model="eupi", split="auto", val_fraction=0.3, solver="lm", max_steps=300, thresholds=False, tilts=False, grid=None, progress=False):
+def fit_record(
+    record,
+    *,
+    model="eupi",
+    split="auto",
+    val_fraction=0.3,
+    solver="lm",
+    max_steps=300,
+    thresholds=False,
+    tilts=False,
+    grid=None,
+    progress=False,
+):
     """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content."""
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
@@ -92,7 +104,10 @@ def fit_record(record, *, model="eupi", split="auto", val_fraction=0.3, solver="
     yhat = np.asarray(simulate(res.model, record.u, record.dt))
     if not np.all(np.isfinite(yhat)):
         raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
-    mets = {"train": metrics(record.y[train], yhat[train]), "validation": metrics(record.y[val], yhat[val]) if val.any() else None}
+    mets = {
+        "train": metrics(record.y[train], yhat[train]),
+        "validation": metrics(record.y[val], yhat[val]) if val.any() else None,
+    }
     notes = []
     if model == "cascade":
         notes.append(K2_NOTE)
@@ -219,7 +234,13 @@ def _report_md(doc, files):
         "| --- | --- | --- |",
     ]
     tr, va = doc["metrics"]["train"], doc["metrics"]["validation"] or {}
-    for key, label in [("rmse", "RMSE"), ("e_r_percent", "e_r (eq. 3, %)"), ("max_abs_error", "max abs error"), ("mean_abs_error", "mean abs error"), ("n_samples", "samples")]:
+    for key, label in [
+        ("rmse", "RMSE"),
+        ("e_r_percent", "e_r (eq. 3, %)"),
+        ("max_abs_error", "max abs error"),
+        ("mean_abs_error", "mean abs error"),
+        ("n_samples", "samples"),
+    ]:
         lines.append(f"| {label} | {_fmt(tr.get(key))} | {_fmt(va.get(key))} |")
     lines += ["", "## Parameters", ""]
     if m["type"] in ("Cascade", "JouleLag"):
@@ -239,7 +260,11 @@ def _report_md(doc, files):
     if doc["notes"]:
         lines += ["", "## Notes", ""] + [f"- {n}" for n in doc["notes"]]
     lines += ["", "## Figures", ""]
-    for key, title in [("time", "Measured vs model over time"), ("loops", "Hysteresis loops (input vs output)"), ("residuals", "Residuals")]:
+    for key, title in [
+        ("time", "Measured vs model over time"),
+        ("loops", "Hysteresis loops (input vs output)"),
+        ("residuals", "Residuals"),
+    ]:
         if key in files:
             lines += [f"### {title}", "", f"![{title}]({files[key]})", ""]
     return "\n".join(lines) + "\n"
@@ -254,4 +279,3 @@ def write_fit_outputs(out, record, doc, masks, *, figures=True):
     atomic_write_json(out / "fit.json", doc)
     atomic_write_text(out / "report.md", _report_md(doc, files))
     return doc
-

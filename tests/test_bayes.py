@@ -59,8 +59,11 @@ def test_log_posterior_matches_numpy_reference(noise):
     else:
         ll = stats.t.logpdf(r, df=5.0, scale=sig).sum()
     yr, umax = np.ptp(y), np.max(np.abs(u))
-    lp = (stats.lognorm.logpdf(k1, s=2.0, scale=0.05) + stats.lognorm.logpdf(k2, s=3.0, scale=0.05 * yr / umax**2)
-          + stats.halfnorm.logpdf(sig, scale=yr))
+    lp = (
+        stats.lognorm.logpdf(k1, s=2.0, scale=0.05)
+        + stats.lognorm.logpdf(k2, s=3.0, scale=0.05 * yr / umax**2)
+        + stats.halfnorm.logpdf(sig, scale=yr)
+    )
     expected = ll + lp + _log_sigmoid(theta).sum()
     got = post(theta[None, :])[0]
     assert got == pytest.approx(expected, rel=1e-10, abs=1e-8)
@@ -70,8 +73,11 @@ def test_jacobian_prior_only_sampling_recovers_prior():
     # Sampling the prior in unconstrained coordinates must give back the physical prior;
     # without the log-Jacobian the mean of log k1 would be shifted by -scale^2 = -0.25.
     u, y, dt, truth = make_record()
-    priors = {"k1": sj.Prior("lognormal", math.log(0.05), 0.5), "k2": sj.Prior("lognormal", math.log(0.05), 0.5),
-              "noise.sigma": sj.Prior("halfnormal", scale=1.0)}
+    priors = {
+        "k1": sj.Prior("lognormal", math.log(0.05), 0.5),
+        "k2": sj.Prior("lognormal", math.log(0.05), 0.5),
+        "noise.sigma": sj.Prior("halfnormal", scale=1.0),
+    }
     post = sj.Posterior(truth, (u, y), dt, priors=priors, prior_only=True)
     run = sj.run_sampler(post, 2500, n_walkers=32, seed=1, progress=False)
     x = post.physical(run.chain[500:].reshape(-1, 3))
@@ -245,9 +251,20 @@ def _write_fit(tmp_path):
     fitted = sj.init_linear(truth, rec)  # gains by the paper's LS at the true k1: a stand-in for `smafl fit`
     yh = np.asarray(sj.simulate(fitted, rec.u, rec.dt))
     fit_json = tmp_path / "fit.json"
-    sj.save_model(fit_json, fitted, metrics={"train": sj.metrics(rec.y, yh)},
-                  data={"file": csv.name, "path": str(csv), "sha256": rec.sha256, "input_column": "voltage_V",
-                        "output_column": "displacement_mm", "sample_time_s": rec.dt, "n_samples": len(rec)})
+    sj.save_model(
+        fit_json,
+        fitted,
+        metrics={"train": sj.metrics(rec.y, yh)},
+        data={
+            "file": csv.name,
+            "path": str(csv),
+            "sha256": rec.sha256,
+            "input_column": "voltage_V",
+            "output_column": "displacement_mm",
+            "sample_time_s": rec.dt,
+            "n_samples": len(rec),
+        },
+    )
     return csv, fit_json
 
 
@@ -256,7 +273,21 @@ def test_cli_sample_end_to_end_and_resume(tmp_path, capsys):
 
     csv, fit_json = _write_fit(tmp_path)
     out = tmp_path / "out"
-    args = ["sample", str(csv), "--fit", str(fit_json), "--out", str(out), "--steps", "60", "--walkers", "8", "--no-progress", "--draws", "20"]
+    args = [
+        "sample",
+        str(csv),
+        "--fit",
+        str(fit_json),
+        "--out",
+        str(out),
+        "--steps",
+        "60",
+        "--walkers",
+        "8",
+        "--no-progress",
+        "--draws",
+        "20",
+    ]
     assert main(args) == 0
     s = json.loads((out / "summary.json").read_text())
     assert set(s["parameters"]) == {"thermal.k1", "noise.sigma"}

@@ -120,6 +120,7 @@ def test_plant_step_matches_open_loop_simulate(truth, rng):
     """The per-sample plant used in the loop equals sj.simulate(model, u, dt) on an open-loop record."""
     u = np.clip(np.cumsum(rng.normal(0, 0.4, 400)) + 3.0, 0, 7.4)
     for model, dt in [(truth, 0.1), (_perturbed(truth), 0.5), (truth.hysteresis, 1.0)]:
+
         def f(st, uk):
             return plant_step(model, st, uk, jnp.asarray(dt))
 
@@ -127,7 +128,9 @@ def test_plant_step_matches_open_loop_simulate(truth, rng):
         np.testing.assert_allclose(np.asarray(y), np.asarray(sj.simulate(model, u, dt)), rtol=0, atol=1e-12)
     # ambient thermal start, different EUPI init rules
     for init in ("zero", "consistent"):
-        m = sj.Cascade(thermal=sj.JouleThermal(k1=0.07, k2=0.05, init="ambient"), hysteresis=dataclasses.replace(truth.hysteresis, init=init))
+        m = sj.Cascade(
+            thermal=sj.JouleThermal(k1=0.07, k2=0.05, init="ambient"), hysteresis=dataclasses.replace(truth.hysteresis, init=init)
+        )
         _, y = jax.lax.scan(lambda st, uk: plant_step(m, st, uk, jnp.asarray(0.2)), plant_init(m, 0.0), jnp.asarray(u))
         np.testing.assert_allclose(np.asarray(y), np.asarray(sj.simulate(m, u, 0.2)), rtol=0, atol=1e-12)
 
@@ -201,7 +204,9 @@ def test_composite_compensator_converges_to_model_inverse(truth):
 
 def test_sweep_matches_single_runs_and_shapes(truth):
     dt = 0.05
-    base = ClosedLoop(plant=truth, pid=PID(), reference=jnp.asarray(sine_reference(20, dt)), compensator=IICompensator(_perturbed(truth), 10.0))
+    base = ClosedLoop(
+        plant=truth, pid=PID(), reference=jnp.asarray(sine_reference(20, dt)), compensator=IICompensator(_perturbed(truth), 10.0)
+    )
     kps, Ks = np.array([10.0, 35.0]), np.array([0.0, 4.0, 10.0])
     res = sweep(base, dt, {"pid.kp": kps, "compensator.K": Ks})
     assert res.shape == (2, 3) and res.metrics["e_mean_mm"].shape == (2, 3)

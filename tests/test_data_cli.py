@@ -40,8 +40,6 @@ def test_select_other_columns(real_data):
         sj.load_record(real_data / "cavatappi_pneumatic_200g_s1_t1.csv", input="pressure", output="displacement_mm")
 
 
-
-
 @pytest.mark.parametrize(
     "text,expect",
     [
@@ -124,10 +122,21 @@ def test_cli_simulate_scores_against_measured_column(tmp_path, datasets_dir, cap
 
 def test_cli_user_errors_exit_2_without_traceback(tmp_path, datasets_dir):
     bad = write(tmp_path, good_csv().replace("0.4000,2.0,0.04", "0.4000,oops,0.04"))
-    cmd = [sys.executable, "-m", "smafl_jax.cli", "simulate", str(datasets_dir / "truth.json"), str(bad), "--out", str(tmp_path / "o.csv")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "smafl_jax.cli",
+        "simulate",
+        str(datasets_dir / "truth.json"),
+        str(bad),
+        "--out",
+        str(tmp_path / "o.csv"),
+    ]
     res = subprocess.run(cmd, capture_output=True, text=True)
     assert res.returncode == 2
     assert "Traceback" not in res.stderr and "row 6" in res.stderr and "voltage_V" in res.stderr
-    res = subprocess.run(cmd[:5] + [str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o.csv")], capture_output=True, text=True)
+    res = subprocess.run(
+        cmd[:5] + [str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o.csv")], capture_output=True, text=True
+    )
     assert res.returncode == 2 and "file not found" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "o.csv").exists()

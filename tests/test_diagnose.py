@@ -57,15 +57,25 @@ def test_no_effect_equals_base(truth, drives):
     y0 = np.asarray(sj.simulate(truth, u, 0.5))
     np.testing.assert_allclose(np.asarray(sj.simulate(ExtendedModel(truth, ()), u, 0.5)), y0, atol=1e-10)
     eupi = truth.hysteresis
-    np.testing.assert_allclose(np.asarray(sj.simulate(ExtendedModel(eupi, ()), u, 0.5)), np.asarray(sj.simulate(eupi, u)), atol=1e-10)
+    np.testing.assert_allclose(
+        np.asarray(sj.simulate(ExtendedModel(eupi, ()), u, 0.5)), np.asarray(sj.simulate(eupi, u)), atol=1e-10
+    )
 
 
 @pytest.mark.parametrize(
     "effect",
-    [Delay(tau=jnp.asarray(1e-9)), SensorLag(tau=jnp.asarray(1e-9)), ResistanceTC(beta=jnp.asarray(1e-9)), NonlinearCooling(gamma=jnp.asarray(1e-9)),
-     AsymmetricCooling(log_ratio=jnp.asarray(0.0)), RateDependence(c=jnp.asarray(1e-9)), Creep(g=jnp.asarray(0.0), tau=jnp.asarray(50.0)),
-     OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5)), InputWarp(c=jnp.asarray(0.5), b=jnp.asarray(1e3)),
-     StrainAccumulation(c=jnp.asarray(0.0))],
+    [
+        Delay(tau=jnp.asarray(1e-9)),
+        SensorLag(tau=jnp.asarray(1e-9)),
+        ResistanceTC(beta=jnp.asarray(1e-9)),
+        NonlinearCooling(gamma=jnp.asarray(1e-9)),
+        AsymmetricCooling(log_ratio=jnp.asarray(0.0)),
+        RateDependence(c=jnp.asarray(1e-9)),
+        Creep(g=jnp.asarray(0.0), tau=jnp.asarray(50.0)),
+        OutputSaturation(m=jnp.asarray(3.0), w=jnp.asarray(1e5)),
+        InputWarp(c=jnp.asarray(0.5), b=jnp.asarray(1e3)),
+        StrainAccumulation(c=jnp.asarray(0.0)),
+    ],
     ids=lambda e: e.name,
 )
 def test_vanishing_effect_is_base(truth, drives, effect):
@@ -81,7 +91,7 @@ def test_input_warp_reference(truth, drives):
 
     s = np.linspace(-0.1, 1.1, 61)
     c, b = 0.45, 0.12
-    S = lambda x: 1.0 / (1.0 + np.exp(-x))  # noqa: E731
+    S = lambda x: 1.0 / (1.0 + np.exp(-x))
     ref = (S((s - c) / b) - S(-c / b)) / (S((1 - c) / b) - S(-c / b))
     got = np.asarray(warp_input(jnp.asarray(s), c, b))
     np.testing.assert_allclose(got, ref, atol=1e-12)
@@ -156,7 +166,14 @@ def test_extended_thermal_matches_numpy_loop(truth, drives):
     """Locally linear step with resistance_tc + nonlinear + asymmetric cooling against a numpy loop."""
     u = _u(drives)
     dt, beta, gamma, lr = 0.5, 0.4, 0.3, -0.5
-    m = ExtendedModel(truth, (ResistanceTC(beta=jnp.asarray(beta)), AsymmetricCooling(log_ratio=jnp.asarray(lr)), NonlinearCooling(gamma=jnp.asarray(gamma))))
+    m = ExtendedModel(
+        truth,
+        (
+            ResistanceTC(beta=jnp.asarray(beta)),
+            AsymmetricCooling(log_ratio=jnp.asarray(lr)),
+            NonlinearCooling(gamma=jnp.asarray(gamma)),
+        ),
+    )
     k1, qref = float(truth.thermal.k1), float(truth.hysteresis.u_span) ** 2
     q = u[0] ** 2
     out = []
@@ -247,7 +264,10 @@ def test_strain_accumulation_c_is_profiled(truth, drives):
     split = make_split(rec)
     fe, info = fit_extended(truth.hysteresis, ["strain_accumulation"], split)
     assert info["nonlinear_parameters"] == 0 and info["n_starts"] == 1 and info["converged"]
-    assert np.isfinite(float(fe.get("strain_accumulation").c)) and info["train_sse"] <= profile_gains(ExtendedModel(truth.hysteresis, ()), split.train)[1]
+    assert (
+        np.isfinite(float(fe.get("strain_accumulation").c))
+        and info["train_sse"] <= profile_gains(ExtendedModel(truth.hysteresis, ()), split.train)[1]
+    )
 
 
 def test_diagnosis_finds_strain_accumulation(truth, drives):
@@ -291,7 +311,9 @@ def test_creep_fit_stays_bounded(truth, drives):
     m, info = fit_extended(eupi, ["creep"], split)
     c = m.get("creep")
     assert abs(float(c.g)) <= 1.0 and lo * (1 - 1e-9) <= float(c.tau) <= hi * (1 + 1e-9)
-    assert info["train_sse"] < np.sum((y[: len(split.train[0].y)] - np.asarray(sj.simulate(eupi, u))[: len(split.train[0].y)]) ** 2)
+    assert info["train_sse"] < np.sum(
+        (y[: len(split.train[0].y)] - np.asarray(sj.simulate(eupi, u))[: len(split.train[0].y)]) ** 2
+    )
 
 
 def test_ambient_drift_probe_both_signs(truth, drives):
@@ -378,7 +400,9 @@ def test_cli_no_effect_selects_none(truth, drives, tmp_path):
     assert sj.model_to_dict(base_all) == sj.model_to_dict(ext)
     assert abs(float(ext.thermal.k1) - float(ext_train.thermal.k1)) > 0  # the refit moved it (more data)
     assert doc["deployed"]["n_samples"] == len(rec) and doc["deployed"]["extended_rmse_all"] < 2.0 * 0.003
-    assert json.loads((out / "extended_fit.json").read_text())["refit"]["validation_metrics_from"].startswith("extended_fit_train.json")
+    assert json.loads((out / "extended_fit.json").read_text())["refit"]["validation_metrics_from"].startswith(
+        "extended_fit_train.json"
+    )
     assert main(["simulate", str(out / "extended_fit.json"), str(csv), "--out", str(tmp_path / "sim.csv")]) == 0
 
 
@@ -443,9 +467,14 @@ def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
     assert isinstance(dep, sj.Preisach) and isinstance(train_fit, sj.Preisach) and float(dep.width) > 0
     d = res["deployed"]
     assert sorted(d["segments"]) == sorted(split.train_labels + split.test_labels)
-    assert d["extended_parameters"]["nonlocal_memory"]["method"] in ("penalised", "everett-spline", "everett-pchip", "everett-linear")
+    assert d["extended_parameters"]["nonlocal_memory"]["method"] in (
+        "penalised",
+        "everett-spline",
+        "everett-pchip",
+        "everett-linear",
+    )
     y_all = np.asarray(rec.y)
-    err = lambda m: np.sqrt(np.mean((np.asarray(m.simulate(rec.u)) - y_all) ** 2))  # noqa: E731  (branches chain: each starts at the bottom)
+    err = lambda m: np.sqrt(np.mean((np.asarray(m.simulate(rec.u)) - y_all) ** 2))
     assert err(dep) <= err(train_fit) + 1e-12
     assert "Deployed models" in (tmp_path / "report.md").read_text()
 

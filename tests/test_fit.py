@@ -7,12 +7,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from reference import eupi_loop, random_reversals
 
 import smafl_jax as sj
 from smafl_jax import _io
 from smafl_jax.cli import main as cli_main
-
-from reference import eupi_loop, random_reversals
 
 
 def _truth(datasets_dir):
@@ -195,10 +194,24 @@ def test_cli_fit_writes_fit_json_and_simulate_accepts_it(tmp_path, datasets_dir,
     data = tmp_path / "short.csv"
     sj.atomic_write_csv(data, {"time_s": r.time[::3], "voltage_V": r.u[::3], "displacement_mm": r.y[::3]})
     out = tmp_path / "fit"
-    rc = cli_main([
-        "fit", str(data), "--model", "eupi", "--out", str(out), "--max-steps", "5",
-        "--n-sym", "4", "--n-alpha", "2", "--n-asym", "2",
-    ])
+    rc = cli_main(
+        [
+            "fit",
+            str(data),
+            "--model",
+            "eupi",
+            "--out",
+            str(out),
+            "--max-steps",
+            "5",
+            "--n-sym",
+            "4",
+            "--n-alpha",
+            "2",
+            "--n-asym",
+            "2",
+        ]
+    )
     assert rc == 0
     doc = json.loads((out / "fit.json").read_text())
     for part in ("train", "validation"):
@@ -233,7 +246,9 @@ def test_cli_fit_bad_inputs_exit_2(tmp_path, datasets_dir, capsys):
 def test_real_forc_branch_split(real_data, tmp_path):
     """The real SMA FORC record fits (poorly, honestly) with validation on held-out branches."""
     out = tmp_path / "forc"
-    assert cli_main(["fit", str(real_data / "sma_wing_forc_train.csv"), "--model", "eupi", "--out", str(out), "--no-figures"]) == 0
+    assert (
+        cli_main(["fit", str(real_data / "sma_wing_forc_train.csv"), "--model", "eupi", "--out", str(out), "--no-figures"]) == 0
+    )
     doc = json.loads((out / "fit.json").read_text())
     assert doc["split"]["kind"] == "branch"
     assert np.isfinite(doc["metrics"]["validation"]["e_r_percent"])

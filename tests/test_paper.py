@@ -44,7 +44,7 @@ def test_report_files_and_figures_exist(paper_run):
         assert (out / f).is_file() and (out / f).stat().st_size > 1000, f
     # the HTML is self-contained: every figure embedded, no external image links
     assert html.count("data:image/png;base64,") == len(figs)
-    assert "src=\"http" not in html
+    assert 'src="http' not in html
     for key in ("fit.json", "control_metrics.json", "posterior/summary.json", "paper.json"):
         assert (out / key).is_file(), key
 

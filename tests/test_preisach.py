@@ -45,7 +45,9 @@ def test_inits_differ_only_above_the_bottom(rng):
     d, z = _random_model(rng, init="descended"), _random_model(rng, init="zero")
     z = z.with_linear_weights(d.linear_weights())
     assert abs(float(d.simulate(jnp.array([1.7]))[0]) - float(z.simulate(jnp.array([1.7]))[0])) > 1e-6
-    np.testing.assert_allclose(np.asarray(d.simulate(jnp.array([0.0, 2.0, 1.0]))), np.asarray(z.simulate(jnp.array([0.0, 2.0, 1.0]))), atol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(d.simulate(jnp.array([0.0, 2.0, 1.0]))), np.asarray(z.simulate(jnp.array([0.0, 2.0, 1.0]))), atol=1e-12
+    )
 
 
 def test_return_point_and_wiping_out_memory(rng):
@@ -55,18 +57,23 @@ def test_return_point_and_wiping_out_memory(rng):
     u = np.concatenate([np.linspace(knots[i], knots[i + 1], 40, endpoint=False) for i in range(len(knots) - 1)] + [[0.0]])
     R = np.asarray(m.relays(u))
     y = np.asarray(m.simulate(u))
-    knot = lambda i: 40 * i  # noqa: E731  (sample index of knots[i])
+    knot = lambda i: 40 * i
     # minor loop 2.5 -> 1.5 -> 2.5 closes: back at 2.5 the state is that of the first visit (return-point memory)
     np.testing.assert_array_equal(R[knot(3)], R[knot(5)])
     # ... and coming back down to 1.0 the earlier minimum's state is restored (the 1.5 reversal is wiped out)
     np.testing.assert_array_equal(R[knot(2)], R[knot(6)])
     assert not np.array_equal(R[knot(3)], R[knot(4)])
     # the loop is hysteretic (descending != ascending at 2.0), so the checks above can fail
-    up, down = [k for k in np.flatnonzero(np.isclose(u, 2.0)) if u[k - 1] < 2.0], [k for k in np.flatnonzero(np.isclose(u, 2.0)) if u[k - 1] > 2.0]
+    up, down = (
+        [k for k in np.flatnonzero(np.isclose(u, 2.0)) if u[k - 1] < 2.0],
+        [k for k in np.flatnonzero(np.isclose(u, 2.0)) if u[k - 1] > 2.0],
+    )
     assert abs(y[up[0]] - y[down[0]]) > 1e-3
     # exceeding the previous maximum (3.3 > 3.0) wipes out all history: same state as a virgin model raised to 3.3
     k = knot(7)
-    virgin = Preisach(w=m.w, offset=m.offset, gain=m.gain, levels=m.levels, u_ref=m.u_ref, u_span=m.u_span, width=m.width, init="zero")
+    virgin = Preisach(
+        w=m.w, offset=m.offset, gain=m.gain, levels=m.levels, u_ref=m.u_ref, u_span=m.u_span, width=m.width, init="zero"
+    )
     fresh = np.asarray(virgin.relays(np.array([0.0, 3.3])))[-1]
     np.testing.assert_array_equal(R[k], fresh)
 
@@ -78,8 +85,9 @@ def test_ramp_relays_equal_crisp_on_cell_edges_and_are_continuous(rng):
     np.testing.assert_allclose(h, 3.5 / 10)
     # a path of random reversals on the cell edges (u = k h): ramp and crisp relays agree exactly
     edges = h * rng.integers(0, 11, 60).astype(float)
-    u = np.concatenate([np.linspace(edges[i], edges[i + 1], 1 + int(round(abs(edges[i + 1] - edges[i]) / h)))
-                        for i in range(len(edges) - 1)])
+    u = np.concatenate(
+        [np.linspace(edges[i], edges[i + 1], 1 + int(round(abs(edges[i + 1] - edges[i]) / h))) for i in range(len(edges) - 1)]
+    )
     np.testing.assert_allclose(np.asarray(ramp.simulate(u)), np.asarray(crisp.simulate(u)), atol=1e-12)
     # between the edges the crisp grid jumps by whole relay weights; the ramp grid moves by at most slope x step
     fine = np.concatenate([np.linspace(0.0, 3.5, 3501), np.linspace(3.5, 0.9, 2601), np.linspace(0.9, 2.7, 1801)])
@@ -216,7 +224,9 @@ def test_inner_cv_criteria_and_everett_candidates(rng):
         cv_fit_preisach(segs, 0.0, 3.5, criterion="bic")
     # segments that are not FORCs: no Everett candidate
     minor = [np.concatenate([u, np.linspace(0.0, 1.5, 16)]) for u in inputs[:3]]
-    _, info = cv_fit_preisach([(u, np.asarray(truth.simulate(u))) for u in minor], 0.0, 3.5, n_levels_grid=(12,), lam_grid=(1e-3,))
+    _, info = cv_fit_preisach(
+        [(u, np.asarray(truth.simulate(u))) for u in minor], 0.0, 3.5, n_levels_grid=(12,), lam_grid=(1e-3,)
+    )
     assert {r["method"] for r in info["cv_table"]} == {"penalised"}
 
 

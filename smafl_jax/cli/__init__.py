@@ -14,7 +14,7 @@ import sys
 from .._errors import UserInputError
 
 # Command modules, in the order `smafl --help` lists them.
-COMMANDS = ["simulate", "fit", "sample", "control", "sweep", "diagnose", "paper"]
+COMMANDS = ["simulate", "fit", "sample", "control", "sweep", "diagnose", "paper", "check"]
 
 
 def build_parser():

@@ -14,10 +14,20 @@ DEFAULT_MODEL = "datasets/truth.json"
 
 def add_loop_arguments(p):
     """Options shared by `smafl control` and `smafl sweep`."""
-    p.add_argument("--model", default=DEFAULT_MODEL, help=f"identified model used by the I-I compensator (model file or fit.json; default {DEFAULT_MODEL})")
+    p.add_argument(
+        "--model",
+        default=DEFAULT_MODEL,
+        help=f"identified model used by the I-I compensator (model file or fit.json; default {DEFAULT_MODEL})",
+    )
     p.add_argument("--plant", default=None, help="model simulated as the plant (default: the --model itself, i.e. no mismatch)")
-    p.add_argument("--reference", default="sine", help="'sine' (paper: sin(3*pi/10 t + pi/2) + 1.5 mm), 'step' (2.5 mm) or a CSV with time_s and a reference column (mm)")
-    p.add_argument("--controller", choices=("pid", "composite"), default="composite", help="PID alone or PID + integral-inverse compensator")
+    p.add_argument(
+        "--reference",
+        default="sine",
+        help="'sine' (paper: sin(3*pi/10 t + pi/2) + 1.5 mm), 'step' (2.5 mm) or a CSV with time_s and a reference column (mm)",
+    )
+    p.add_argument(
+        "--controller", choices=("pid", "composite"), default="composite", help="PID alone or PID + integral-inverse compensator"
+    )
     p.add_argument("--kp", type=float, default=35.0, help="proportional gain, V/mm (paper: 35)")
     p.add_argument("--ki", type=float, default=20.0, help="integral gain, V/(mm s) (paper: 20)")
     p.add_argument("--kd", type=float, default=0.0, help="derivative gain, V s/mm (paper: 0)")
@@ -27,9 +37,17 @@ def add_loop_arguments(p):
     p.add_argument("--duration", type=float, default=40.0, help="simulated time for sine/step references, s")
     p.add_argument("--umax", type=float, default=7.4, help="upper drive limit, V (paper's maximum test voltage); lower limit 0 V")
     p.add_argument("--noise", type=float, default=0.0, help="measurement noise standard deviation, mm")
-    p.add_argument("--quantum", type=float, default=0.0, help="sensor quantisation step, mm (0 = none; 16 bit over 10 mm = 1.5e-4)")
-    p.add_argument("--eval-start", type=float, default=0.0, help="metrics count samples from this time on, s (0 = whole record, eq. 8)")
-    p.add_argument("--compensator-cascade", action="store_true", help="run the I-I loop on the whole identified cascade instead of its static EUPI")
+    p.add_argument(
+        "--quantum", type=float, default=0.0, help="sensor quantisation step, mm (0 = none; 16 bit over 10 mm = 1.5e-4)"
+    )
+    p.add_argument(
+        "--eval-start", type=float, default=0.0, help="metrics count samples from this time on, s (0 = whole record, eq. 8)"
+    )
+    p.add_argument(
+        "--compensator-cascade",
+        action="store_true",
+        help="run the I-I loop on the whole identified cascade instead of its static EUPI",
+    )
     p.add_argument("--seed", type=int, default=0, help="noise seed")
 
 
@@ -83,7 +101,9 @@ def build_loop(args):
     if len(ref) < 2:
         raise UserInputError("the reference has fewer than 2 samples: increase --duration or decrease --dt")
     try:
-        comp = IICompensator(model, args.K, hysteresis_only=not args.compensator_cascade) if args.controller == "composite" else None
+        comp = (
+            IICompensator(model, args.K, hysteresis_only=not args.compensator_cascade) if args.controller == "composite" else None
+        )
         loop = ClosedLoop(
             plant=plant,
             pid=PID(args.kp, args.ki, args.kd, tf=args.tf, umin=0.0, umax=args.umax),
@@ -106,7 +126,9 @@ def build_loop(args):
         "kd": args.kd,
         "tf_s": args.tf,
         "K": args.K if args.controller == "composite" else None,
-        "compensator_forward_model": ("cascade" if args.compensator_cascade else "static EUPI") if args.controller == "composite" else None,
+        "compensator_forward_model": ("cascade" if args.compensator_cascade else "static EUPI")
+        if args.controller == "composite"
+        else None,
         "dt_s": args.dt,
         "n_samples": int(len(ref)),
         "u_range_V": [0.0, args.umax],
@@ -146,7 +168,10 @@ def run(args):
     if not all(np.isfinite(v) for v in metrics.values()):
         raise UserInputError("the closed loop produced non-finite values (unstable gains for this sample time?)")
     t = traj["time_s"]
-    atomic_write_csv(out / "trajectory.csv", {k: traj[k] for k in ("time_s", "reference", "y", "y_meas", "error", "u", "u1", "u2", "saturated")})
+    atomic_write_csv(
+        out / "trajectory.csv",
+        {k: traj[k] for k in ("time_s", "reference", "y", "y_meas", "error", "u", "u1", "u2", "saturated")},
+    )
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     ax1.plot(t, traj["reference"], "k--", label="reference")
     ax1.plot(t, traj["y"], label=f"output ({args.controller})")

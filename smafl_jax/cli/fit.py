@@ -19,9 +19,19 @@ def add_parser(sub):
     p.add_argument("data", help="record CSV (time_s, input and output columns; optional branch column)")
     p.add_argument("--input", default=None, help="input column (default: sidecar, else a common name such as voltage_V)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, else e.g. displacement_mm)")
-    p.add_argument("--model", choices=MODELS, default="eupi", help="eupi (paper eq. 2), cascade (thermal + EUPI), joule (eq. 7 lag); default eupi")
+    p.add_argument(
+        "--model",
+        choices=MODELS,
+        default="eupi",
+        help="eupi (paper eq. 2), cascade (thermal + EUPI), joule (eq. 7 lag); default eupi",
+    )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
-    p.add_argument("--split", choices=SPLITS, default="auto", help="validation split: branch (every 3rd branch), time (last part), none; auto = branch if a 'branch' column exists")
+    p.add_argument(
+        "--split",
+        choices=SPLITS,
+        default="auto",
+        help="validation split: branch (every 3rd branch), time (last part), none; auto = branch if a 'branch' column exists",
+    )
     p.add_argument("--val-fraction", type=float, default=0.3, help="held-out fraction for the time split (default 0.3)")
     p.add_argument("--solver", choices=SOLVERS, default="lm", help="joint refinement solver (default lm)")
     p.add_argument("--max-steps", type=int, default=300, help="refinement steps (0 = initialiser only)")

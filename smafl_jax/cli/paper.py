@@ -8,7 +8,9 @@ def add_parser(sub):
     p.add_argument("--out", default="out/paper", help="output folder (default: out/paper)")
     p.add_argument("--quick", action="store_true", help="fewer solver steps and samples (< 3 min on 2 cores)")
     p.add_argument("--datasets", default=None, help="folder of bundled records (default: the repository's datasets/)")
-    p.add_argument("--real-data", default=None, help="folder of real measured records (default: ../shared/data/real beside the repo)")
+    p.add_argument(
+        "--real-data", default=None, help="folder of real measured records (default: ../shared/data/real beside the repo)"
+    )
     p.add_argument("--seed", type=int, default=0, help="seed for the sampler and anything random")
     p.set_defaults(func=run)
     return p

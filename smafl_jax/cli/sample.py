@@ -26,16 +26,31 @@ def add_parser(sub):
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--steps", type=int, default=3000, help="chain length per walker (default 3000)")
     p.add_argument("--walkers", type=int, default=None, help="number of walkers (default max(32, 2 ndim + 2))")
-    p.add_argument("--burn", type=int, default=None, help="steps discarded as burn-in (default: automatic, from the autocorrelation time)")
-    p.add_argument("--linear", choices=["auto", "sample", "marginalise", "profile"], default="auto",
-                   help="EUPI gains: sample them, marginalise them analytically (Gaussian prior) or profile them; "
-                   "auto = marginalise when the model has an EUPI, else sample")
+    p.add_argument(
+        "--burn", type=int, default=None, help="steps discarded as burn-in (default: automatic, from the autocorrelation time)"
+    )
+    p.add_argument(
+        "--linear",
+        choices=["auto", "sample", "marginalise", "profile"],
+        default="auto",
+        help="EUPI gains: sample them, marginalise them analytically (Gaussian prior) or profile them; "
+        "auto = marginalise when the model has an EUPI, else sample",
+    )
     p.add_argument("--noise", choices=["gaussian", "student-t"], default="gaussian", help="noise model (scale is sampled)")
     p.add_argument("--nu", type=float, default=4.0, help="Student-t degrees of freedom (default 4)")
-    p.add_argument("--priors", default=None, help="JSON file overriding priors: {\"thermal.k1\": {\"dist\": \"lognormal\", \"loc\": -3, \"scale\": 1}}")
+    p.add_argument(
+        "--priors", default=None, help='JSON file overriding priors: {"thermal.k1": {"dist": "lognormal", "loc": -3, "scale": 1}}'
+    )
     p.add_argument("--gain-scale", type=float, default=None, help="prior sd of marginalised gains (default 10x output range)")
-    p.add_argument("--heldout", default=None, help="held-out CSV for the predictive check (default: the last --holdout-fraction of DATA)")
-    p.add_argument("--holdout-fraction", type=float, default=0.25, help="tail of DATA held out when no --heldout is given (default 0.25; 0 = use all)")
+    p.add_argument(
+        "--heldout", default=None, help="held-out CSV for the predictive check (default: the last --holdout-fraction of DATA)"
+    )
+    p.add_argument(
+        "--holdout-fraction",
+        type=float,
+        default=0.25,
+        help="tail of DATA held out when no --heldout is given (default 0.25; 0 = use all)",
+    )
     p.add_argument("--input", default=None, help="input column (default: the fit's)")
     p.add_argument("--output", default=None, help="output column (default: the fit's)")
     p.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive bands (default 200)")
@@ -64,7 +79,9 @@ def run(args):
         raise UserInputError(f"--draws must be >= 2, got {args.draws}")
     model, doc = load_model_file(args.fit)
     info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
-    rec = load_record(args.data_csv, input=args.input or info.get("input_column"), output=args.output or info.get("output_column"))
+    rec = load_record(
+        args.data_csv, input=args.input or info.get("input_column"), output=args.output or info.get("output_column")
+    )
     if rec.y is None:
         raise UserInputError(f"{args.data_csv}: no output column to condition on")
     fit_dt = info.get("sample_time_s")
@@ -84,15 +101,31 @@ def run(args):
         if linear == "marginalise" and args.noise != "gaussian":
             linear = "profile"
     priors = B.load_priors(args.priors) if args.priors else None
-    post = B.Posterior(model, (rec.u[:n_train], rec.y[:n_train]), rec.dt, noise=args.noise, nu=args.nu, priors=priors,
-                       linear=linear, gain_scale=args.gain_scale)
+    post = B.Posterior(
+        model,
+        (rec.u[:n_train], rec.y[:n_train]),
+        rec.dt,
+        noise=args.noise,
+        nu=args.nu,
+        priors=priors,
+        linear=linear,
+        gain_scale=args.gain_scale,
+    )
 
     out = prepare_out_dir(args.out)
     chain_path = out / "chain.h5"
     settings = {
-        "data_sha256": rec.sha256, "fit_sha256": _sha(args.fit), "n_train": n_train, "linear": linear, "noise": args.noise,
-        "nu": args.nu, "priors": {k: v.to_dict() for k, v in post.priors.items()}, "gain_scale": post.gain_scale,
-        "walkers": args.walkers, "seed": args.seed, "names": post.names,
+        "data_sha256": rec.sha256,
+        "fit_sha256": _sha(args.fit),
+        "n_train": n_train,
+        "linear": linear,
+        "noise": args.noise,
+        "nu": args.nu,
+        "priors": {k: v.to_dict() for k, v in post.priors.items()},
+        "gain_scale": post.gain_scale,
+        "walkers": args.walkers,
+        "seed": args.seed,
+        "names": post.names,
     }
     run_json = out / "run.json"
     resume = chain_path.exists() and not args.restart
@@ -102,20 +135,34 @@ def run(args):
         except (OSError, json.JSONDecodeError):
             old = None
         if old != json.loads(json.dumps(settings)):
-            raise UserInputError(f"{chain_path} belongs to a run with other data or settings (see {run_json}); "
-                                 "pass --restart to discard it or choose another --out")
+            raise UserInputError(
+                f"{chain_path} belongs to a run with other data or settings (see {run_json}); "
+                "pass --restart to discard it or choose another --out"
+            )
     atomic_write_json(run_json, settings)
-    print(f"sampling {post.ndim} parameters ({', '.join(post.names[:6])}{' ...' if post.ndim > 6 else ''}); "
-          f"gains: {linear}; noise: {args.noise}", file=sys.stderr)
-    result = B.run_sampler(post, args.steps, n_walkers=args.walkers, path=chain_path, seed=args.seed, resume=resume,
-                           progress=not args.no_progress)
+    print(
+        f"sampling {post.ndim} parameters ({', '.join(post.names[:6])}{' ...' if post.ndim > 6 else ''}); "
+        f"gains: {linear}; noise: {args.noise}",
+        file=sys.stderr,
+    )
+    result = B.run_sampler(
+        post, args.steps, n_walkers=args.walkers, path=chain_path, seed=args.seed, resume=resume, progress=not args.no_progress
+    )
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", B.ChainTooShortWarning)  # reported below and in summary.json
         summary = B.summarize(post, result, args.burn)
-    summary["data"] = {"file": Path(args.data_csv).name, "sha256": rec.sha256, "input_column": rec.input_name,
-                       "output_column": rec.output_name, "n_train": n_train, "sample_time_s": rec.dt,
-                       "heldout": Path(args.heldout).name if args.heldout else (f"last {len(rec) - n_train} samples" if n_train < len(rec) else None)}
+    summary["data"] = {
+        "file": Path(args.data_csv).name,
+        "sha256": rec.sha256,
+        "input_column": rec.input_name,
+        "output_column": rec.output_name,
+        "n_train": n_train,
+        "sample_time_s": rec.dt,
+        "heldout": Path(args.heldout).name
+        if args.heldout
+        else (f"last {len(rec) - n_train} samples" if n_train < len(rec) else None),
+    }
     summary["fit"] = str(args.fit)
 
     # -- figures and tables ------------------------------------------------
@@ -133,19 +180,34 @@ def run(args):
     ylabel = f"{target.output_name}"
     fig, cover = predictive_time_figure(target.time, target.y, f, yrep, mask, ylabel=ylabel)
     atomic_savefig(fig, out / "predictive_time.png")
-    atomic_savefig(predictive_loop_figure(target.u, target.y, f, mask, xlabel=target.input_name, ylabel=ylabel), out / "predictive_loop.png")
+    atomic_savefig(
+        predictive_loop_figure(target.u, target.y, f, mask, xlabel=target.input_name, ylabel=ylabel), out / "predictive_loop.png"
+    )
     fq = np.quantile(f, [0.025, 0.5, 0.975], axis=0)
     yq = np.quantile(yrep, [0.025, 0.975], axis=0)
     from .._io import atomic_write_csv
 
-    atomic_write_csv(out / "predictive.csv", {"time_s": target.time, target.input_name: target.u, target.output_name: target.y,
-                                              "heldout": (~mask).astype(float), "median": fq[1], "model_q025": fq[0], "model_q975": fq[2],
-                                              "pred_q025": yq[0], "pred_q975": yq[1]})
+    atomic_write_csv(
+        out / "predictive.csv",
+        {
+            "time_s": target.time,
+            target.input_name: target.u,
+            target.output_name: target.y,
+            "heldout": (~mask).astype(float),
+            "median": fq[1],
+            "model_q025": fq[0],
+            "model_q975": fq[2],
+            "pred_q025": yq[0],
+            "pred_q975": yq[1],
+        },
+    )
     summary["heldout_coverage_95"] = cover
     atomic_write_json(out / "summary.json", summary)
     lines = ["name,mean,sd,q025,q975,ess,autocorr_time"]
     for name, s in summary["parameters"].items():
-        lines.append(f"{name},{s['mean']:.8g},{s['sd']:.8g},{s['q025']:.8g},{s['q975']:.8g},{s['ess']:.1f},{s['autocorr_time']:.2f}")
+        lines.append(
+            f"{name},{s['mean']:.8g},{s['sd']:.8g},{s['q025']:.8g},{s['q975']:.8g},{s['ess']:.1f},{s['autocorr_time']:.2f}"
+        )
     atomic_write_text(out / "parameters.csv", "\n".join(lines) + "\n")
 
     # -- console report ------------------------------------------------------
@@ -157,8 +219,10 @@ def run(args):
             print(f"{name:<22}{s['mean']:>12.5g}{s['sd']:>12.4g}{s['q025']:>12.5g}{s['q975']:>12.5g}")
         else:
             print(f"{name}: not identified ({s['note']})")
-    print(f"acceptance fraction {summary['acceptance_fraction']:.3f}; max autocorrelation time {summary['autocorr_time_max']:.1f} "
-          f"steps; {summary['n_steps']} steps x {summary['n_walkers']} walkers, burn-in {burn}")
+    print(
+        f"acceptance fraction {summary['acceptance_fraction']:.3f}; max autocorrelation time {summary['autocorr_time_max']:.1f} "
+        f"steps; {summary['n_steps']} steps x {summary['n_walkers']} walkers, burn-in {burn}"
+    )
     if cover is not None:
         print(f"held-out points inside the 95 % predictive band: {100 * cover:.1f} %")
     for w in summary["warnings"]:

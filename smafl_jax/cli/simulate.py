@@ -17,9 +17,12 @@ def add_parser(sub):
     p.add_argument("--out", required=True, help="output CSV (time_s, input, simulated output)")
     p.add_argument("--input", default=None, help="input column (default: the fit's input column, else a common name)")
     p.add_argument("--output-name", default=None, help="name of the simulated column (default: <fit output>_model)")
-    p.add_argument("--measured", default=None,
-                   help="measured output column to score against (default: the fit's output column when the CSV has it); "
-                        "prints RMSE and e_r and copies the column into the output CSV")
+    p.add_argument(
+        "--measured",
+        default=None,
+        help="measured output column to score against (default: the fit's output column when the CSV has it); "
+        "prints RMSE and e_r and copies the column into the output CSV",
+    )
     p.add_argument("--metrics", default=None, help="also write those metrics to this JSON file")
     p.set_defaults(func=run)
     return p
@@ -63,8 +66,10 @@ def run(args):
     atomic_write_csv(out, cols)
     print(f"wrote {out} ({len(rec)} samples, column '{out_name}')")
     if scored is not None:
-        print(f"against measured '{measured}': RMSE {scored['rmse']:.4g}, max |error| {scored['max_abs_error']:.4g}, "
-              f"e_r {scored['e_r_percent']:.2f} % (eq. 3)")
+        print(
+            f"against measured '{measured}': RMSE {scored['rmse']:.4g}, max |error| {scored['max_abs_error']:.4g}, "
+            f"e_r {scored['e_r_percent']:.2f} % (eq. 3)"
+        )
     if args.metrics:
         from .._io import atomic_write_json
 

@@ -102,6 +102,8 @@ def run(args):
     atomic_write_json(out / "metrics.json", {"best": best, "n_configurations": n, "axes": {xn: xv, yn: yv}, "settings": settings})
     print(f"{'rank':>4} {xn:>10} {yn:>10} {'e_mean_mm':>12} {'rmse_mm':>10} {'saturated':>9}")
     for i, j in enumerate(order):
-        print(f"{i + 1:>4} {cols[xn][j]:>10.4g} {cols[yn][j]:>10.4g} {cols['e_mean_mm'][j]:>12.4g} {cols['rmse_mm'][j]:>10.4g} {cols['saturated_fraction'][j]:>9.3f}")
+        print(
+            f"{i + 1:>4} {cols[xn][j]:>10.4g} {cols[yn][j]:>10.4g} {cols['e_mean_mm'][j]:>12.4g} {cols['rmse_mm'][j]:>10.4g} {cols['saturated_fraction'][j]:>9.3f}"
+        )
     print(f"-> {out}")
     return 0

@@ -1,0 +1,710 @@
+"""Data checks: find faults in records before they are fitted (`check_record`, `check_records`).
+
+Every rule is scale-free: sizes are compared with the record's own noise
+scale, its own range or its own sample-to-sample changes, never with a number
+in the data's units, so a record in mm, in volts or in raw counts (and at any
+sample time) is judged alike.  The constants below are fixed a priori (from the
+false-alarm rate of Gaussian noise and from what a fault does to a fit), not
+tuned to any file.
+
+Scales (per column):
+
+- *range* R: 1st to 99th percentile (a few spikes cannot inflate it).
+- *noise* sigma: 1.4826 MAD of the second differences / sqrt(6) (second
+  differences remove smooth trends; the MAD ignores spikes and jumps); when
+  more than half of them are zero (quantised or flat data) the mean absolute
+  deviation is used instead.
+
+Detectors on one record (`check_record`):
+
+- ``constant``: the input or the output never changes (action ``drop``; the
+  other detectors are then skipped).
+- ``offset_jump`` (output; a sensor zeroed, knocked or re-seated while the
+  input holds).  Rule: the median of the ``JUMP_WINDOW`` (10) samples after
+  sample k differs from the median of the 10 samples up to k by at least
+  ``JUMP_Z`` (10) sigma and ``JUMP_REL`` (5 %) of R; the change is a step (at
+  most 2 samples between 25 % and 75 % of the way); each side is a level (the
+  medians of its two halves differ by at most ``LEVEL_DRIFT`` (30 %) of the
+  step: no fast ramp into a limit); and the input holds (its window medians
+  differ by at most ``QUIET_REL`` (2 %) of its range, its median-filtered trace
+  stays within 4 % of its range).  Output spikes are bridged first (a spike in a
+  window biases its median); steps across a sampling gap of kept irregular
+  stamps are skipped (``gap`` covers them).  The finding covers the shorter
+  side of the step (up to the neighbouring step); the steps into and out of one
+  offset stretch make one finding.  Action: ``cut`` when that side reaches the
+  start or end of the record, else ``mark``.
+- ``spike`` (input and output).  Rule: the residual of a 7-sample running
+  median (a high-pass that keeps steps) exceeds ``SPIKE_Z`` (8) robust scales
+  (1.4826 MAD of the residual; Gaussian false alarms ~1e-15 per sample) and
+  ``SPIKE_REL`` (1 %) of R, over at most 3 samples; straight lines through the
+  4 samples before and the 4 after both miss the excursion on the side the
+  running median does (a peak of a triangle, a corner or a rounded peak is
+  predicted by at least one side), by more than 8 x 2 sigma, 1 % of R and
+  ``SPIKE_LOCAL`` (3) times the neighbours' own median sample-to-sample change
+  (a sharp but smooth transient of a fast signal is not a spike).  The first
+  and last two samples are not judged.  Action: ``mark``.
+- ``clipped`` (output).  Rule: the record's minimum or maximum value is held by
+  at least ``FLAT_MIN`` (10) samples and ``CLIP_FACTOR`` (5) times as many as
+  the typical distinct value, and at least 10 other samples lie within 5 % of
+  R of it (the signal approaches the limit, as a clipped signal does; an
+  isolated stuck value does not).  Action: ``mark`` the samples at that value.
+- ``flat`` (output; a stuck sensor or a held value).  Rule: a run of exactly
+  repeated values of at least 10 samples that is improbable for this record:
+  with p the fraction of steps that repeat a value anywhere in the record, a
+  run of L samples is flagged when n p^(L-1) < ``FLAT_P`` (1e-3, the expected
+  number of such runs by chance); runs at a clipped limit are left to
+  ``clipped``.  A stuck sensor that lets go while the input holds also gives an
+  ``offset_jump`` at the end of the run.  Action: ``cut`` when the run touches
+  the start or end, else ``mark``.
+- ``irregular_sampling`` and ``gap``.  Rule: time steps off the median step by
+  more than ``dt_rtol`` (15 %; kept irregular stamps: action ``resample``), or
+  intervals bridged by resampling (`Record.gaps`: action ``mark``: the
+  interpolated samples are not measurements); a repeated gap spacing is named
+  as bursts.  Each gap of at least ``LONG_GAP_STEPS`` (10) sample times is also
+  listed on its own: ``cut`` when the record on one side of it is under
+  ``CUT_SIDE`` (10 %) of the record, else ``mark``.
+
+Across records (`check_records`):
+
+- ``level_mismatch``: in 5 equal bins of the input band all records share
+  (1st..99th percentiles), a record's output medians differ from the median
+  record's in every bin with data by at least ``LEVEL_REL`` (25 %) of the
+  median output range, all with one sign: a whole run shifted (a gain or
+  hysteresis difference moves some bins, not all of them by a quarter of the
+  range the same way).  With two records the odd one cannot be told; both are
+  named.  Action: ``drop`` (or subtract the offset).
+- ``input_range``: more than ``RANGE_OUT`` (10 %) of a record's input lies
+  outside the others' band (0.5..99.5 percentiles, widened by 2 % of its span),
+  or its span is under ``RANGE_SPAN`` (half) the others' median span: a model
+  trained on the others extrapolates there.  Action: ``check``.
+- ``dt_mismatch`` (sample time off the median record's by more than
+  ``dt_rtol``: ``resample``) and ``duplicate`` (same file content: ``drop``).
+
+Actions: ``cut`` (remove samples at the start or end), ``drop`` (leave the
+record out), ``mark`` (keep simulating through them, leave them out of the
+loss and the scores), ``resample`` (load with ``--resample DT``), ``check``
+(look at it; no automatic remedy).  ``Finding.size`` is signed where a direction
+exists: the offset of the affected stretch against the rest (jumps), the
+excursion (spikes), the held value minus the record's median (flat, clipped),
+the gap length in seconds (gaps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from .record import DEFAULT_DT_RTOL, Record
+
+__all__ = ["Finding", "check_record", "check_records", "ACTIONS"]
+
+ACTIONS = ("cut", "drop", "mark", "resample", "check")
+
+JUMP_WINDOW = 10
+JUMP_Z = 10.0
+JUMP_REL = 0.05
+QUIET_REL = 0.02
+LEVEL_DRIFT = 0.3
+SPIKE_WINDOW = 7
+SPIKE_Z = 8.0
+SPIKE_REL = 0.01
+SPIKE_MAX_LEN = 3
+SIDE_POINTS = 4
+SPIKE_LOCAL = 3.0
+SIDE_NOISE = 2.0  # noise of a 4-point line extrapolated 1-3 steps, in units of the sample noise (about 1.6-2.2)
+FLAT_MIN = 10
+FLAT_P = 1e-3
+CLIP_FACTOR = 5.0
+LONG_GAP_STEPS = 10
+CUT_SIDE = 0.1
+LEVEL_REL = 0.25
+LEVEL_BINS = 5
+RANGE_OUT = 0.1
+RANGE_SPAN = 0.5
+RANGE_TOL = 0.02
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    """One suspected fault: where (record, column, time, samples), how large, and what to do."""
+
+    kind: str
+    record: str
+    column: str
+    time_s: tuple[float, float]
+    index: tuple[int, int]  # [start, stop) sample indices of the affected stretch
+    size: float  # in the column's units (signed where a direction exists); nan when not a size
+    size_rel: float  # size / the column's range (1st..99th percentile)
+    message: str
+    action: str
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["time_s"], d["index"] = list(self.time_s), list(self.index)
+        for k in ("size", "size_rel"):
+            d[k] = None if not math.isfinite(d[k]) else float(d[k])
+        return d
+
+    def line(self, unit: str = "") -> str:
+        """One-line text: record, kind, column, time, samples, size, action, message."""
+        t0, t1 = self.time_s
+        where = f"t {t0:.6g}-{t1:.6g} s" if t1 != t0 else f"t {t0:.6g} s"
+        size = ""
+        if math.isfinite(self.size):
+            size = f"  size {self.size:+.4g}{' ' + unit if unit else ''}"
+            if math.isfinite(self.size_rel):
+                size += f" ({100 * self.size_rel:+.1f} % of range)"
+        return (
+            f"{self.record}  {self.kind}  [{self.column}]  {where} (samples {self.index[0]}..{self.index[1] - 1}){size}  "
+            f"-> {self.action}: {self.message}"
+        )
+
+
+# -- scales -------------------------------------------------------------------------
+
+
+def robust_range(x: np.ndarray) -> float:
+    """1st to 99th percentile span (max - min when that is zero; nan for a constant column)."""
+    x = np.asarray(x, float)
+    lo, hi = np.percentile(x, [1, 99])
+    r = float(hi - lo) or float(np.ptp(x))
+    return r if r > 0 else math.nan
+
+
+def noise_scale(x: np.ndarray) -> float:
+    """Robust noise standard deviation from second differences (see module docstring)."""
+    d2 = np.diff(np.asarray(x, float), 2)
+    if d2.size < 3:
+        return 0.0
+    dev = np.abs(d2 - np.median(d2))
+    s = 1.4826 * float(np.median(dev))
+    if s == 0.0:
+        s = 1.2533 * float(np.mean(dev))
+    return s / math.sqrt(6.0)
+
+
+def _medfilt(x: np.ndarray, w: int) -> np.ndarray:
+    h = w // 2
+    if x.size <= h:
+        return np.full_like(x, np.median(x))
+    return np.median(sliding_window_view(np.pad(x, h, mode="reflect"), w), axis=1)
+
+
+def _runs(flag: np.ndarray) -> list[tuple[int, int]]:
+    """``[start, stop)`` of the runs of True in a boolean array."""
+    f = np.concatenate([[False], np.asarray(flag, bool), [False]])
+    edges = np.flatnonzero(np.diff(f.astype(np.int8)))
+    return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
+
+
+def _finding(rec, kind, column, a, b, size, rng, message, action) -> Finding:
+    n = len(rec)
+    a, b = max(0, int(a)), min(n, int(b))
+    t = rec.time
+    return Finding(
+        kind=kind,
+        record=rec.name,
+        column=str(column),
+        time_s=(float(t[a]), float(t[max(a, b - 1)])),
+        index=(a, b),
+        size=float(size),
+        size_rel=float(size / rng) if math.isfinite(size) and rng and math.isfinite(rng) else math.nan,
+        message=message,
+        action=action,
+    )
+
+
+# -- single-record detectors ------------------------------------------------------------
+
+
+def _side_prediction(t: np.ndarray, x: np.ndarray, idx: np.ndarray, at: np.ndarray) -> np.ndarray | None:
+    """Least-squares line through ``x[idx]`` (over time) evaluated at ``t[at]``; None with fewer than 2 points."""
+    if idx.size < 2:
+        return None
+    tt = t[idx] - t[idx].mean()
+    slope = float(tt @ (x[idx] - x[idx].mean()) / (tt @ tt))
+    return x[idx].mean() + slope * (t[at] - t[idx].mean())
+
+
+def _spikes(rec: Record, x: np.ndarray, column: str) -> list[Finding]:
+    rng = robust_range(x)
+    n = x.size
+    if n < SPIKE_WINDOW or not math.isfinite(rng):
+        return []
+    t = np.asarray(rec.time, float)
+    r = x - _medfilt(x, SPIKE_WINDOW)
+    dev = np.abs(r - np.median(r))
+    s = 1.4826 * float(np.median(dev)) or 1.2533 * float(np.mean(dev))
+    sig = noise_scale(x)
+    bad = (np.abs(r) > SPIKE_Z * s) & (np.abs(r) > SPIKE_REL * rng)
+    out = []
+    for a, b in _runs(bad):
+        # the core of the excursion: samples at least half as far off as its peak, on its side (a wide spike on a slope
+        # biases the running median, which can flag a neighbour weakly)
+        peak = r[a + int(np.argmax(np.abs(r[a:b])))]
+        core = np.flatnonzero(r[a:b] * np.sign(peak) >= 0.5 * abs(peak))
+        a, b = a + int(core[0]), a + int(core[-1]) + 1
+        if b - a > SPIKE_MAX_LEN or b - a != core.size:
+            continue
+        k = a + int(np.argmax(np.abs(r[a:b])))
+        # a spike leaves the local trend on both sides: a peak of a triangle or a corner is predicted by at least
+        # one side's straight line, a spike by neither
+        li, ri = np.arange(max(0, a - SIDE_POINTS), a), np.arange(b, min(n, b + SIDE_POINTS))
+        if li.size < 2 or ri.size < 2:
+            continue  # the first and last two samples cannot be told from a trend change
+        res = [float(x[k] - _side_prediction(t, x, idx, np.array([k]))[0]) for idx in (li, ri)]
+        if not all(e * r[k] > 0 for e in res):
+            continue  # not off both trends the way it is off the running median
+        size = min(res, key=abs)
+        # the neighbours' own sample-to-sample changes: a sharp but smooth peak of a fast signal is not a spike
+        local = float(np.median(np.abs(np.concatenate([np.diff(x[li]), np.diff(x[ri])]))))
+        if abs(size) <= max(SPIKE_Z * SIDE_NOISE * sig, SPIKE_REL * rng, SPIKE_LOCAL * local):
+            continue
+        out.append(
+            _finding(
+                rec,
+                "spike",
+                column,
+                a,
+                b,
+                size,
+                rng,
+                f"{b - a}-sample excursion of {abs(r[k]) / s:.0f} robust scales off the running median, off the local trend on both sides",
+                "mark",
+            )
+        )
+    return out
+
+
+def _input_quiet(u: np.ndarray, a: int, k: int, b: int) -> tuple[bool, float]:
+    """Whether the input holds still over ``[a, b)`` around a step after ``k`` (and the relative change of its medians)."""
+    ru = robust_range(u)
+    if not math.isfinite(ru):
+        return True, 0.0
+    du = abs(float(np.median(u[k + 1 : b]) - np.median(u[a : k + 1]))) / ru
+    mf = _medfilt(u[a:b], 5) if b - a >= 5 else u[a:b]
+    return bool(du <= QUIET_REL and float(np.ptp(mf)) / ru <= 2 * QUIET_REL), du
+
+
+def _step_at(y: np.ndarray, k: int, w: int) -> tuple[float, float]:
+    """Medians of the ``w`` samples up to ``k`` and the ``w`` samples after it."""
+    return float(np.median(y[max(0, k - w + 1) : k + 1])), float(np.median(y[k + 1 : k + 1 + w]))
+
+
+def _jumps(rec: Record, dt_rtol: float, y: np.ndarray) -> list[Finding]:
+    u = np.asarray(rec.u, float)
+    n, w = y.size, JUMP_WINDOW
+    dts = np.diff(np.asarray(rec.time, float))
+    gap_after = dts > (1 + dt_rtol) * np.median(dts)  # irregular stamps kept: a step across missing time is no jump
+    rng, sig = robust_range(y), noise_scale(y)
+    if n < 2 * w or not math.isfinite(rng):
+        return []
+    med = np.median(sliding_window_view(y, w), axis=1)  # med[i] = median(y[i : i + w])
+    ks = np.arange(w - 1, n - w)
+    D = med[ks + 1] - med[ks - w + 1]
+    thr = max(JUMP_Z * sig, JUMP_REL * rng)
+    steps = []
+    for a, b in _runs(np.abs(D) >= thr):
+        k0 = int(ks[a + int(np.argmax(np.abs(D[a:b])))])
+        lo0, hi0 = max(0, k0 - w + 1), min(n, k0 + w + 1)
+        before, after = _step_at(y, k0, w)
+        x = (y[lo0:hi0] - before) / (after - before)
+        # the step sits where the fewest samples fall on the wrong side of the half-way level
+        wrong = [int(np.sum(x[: j + 1] > 0.5) + np.sum(x[j + 1 :] < 0.5)) for j in range(x.size - 1)]
+        k = lo0 + int(np.argmin(wrong))
+        if k < w - 1 or k > n - w - 1 or gap_after[k]:
+            continue
+        before, after = _step_at(y, k, w)
+        d = after - before
+        if abs(d) < thr:
+            continue
+        lo, hi = k - w + 1, k + w + 1
+        x = (y[lo:hi] - before) / d
+        if int(np.sum((x > 0.25) & (x < 0.75))) > 2:
+            continue  # a ramp, not a step
+        h = w // 2
+        drift = max(abs(float(np.median(x[h:w]) - np.median(x[:h]))), abs(float(np.median(x[w + h :]) - np.median(x[w : w + h]))))
+        if drift > LEVEL_DRIFT:
+            continue  # the sides are not levels (a fast ramp into a limit, say)
+        quiet, du = _input_quiet(u, lo, k, hi)
+        if quiet and (not steps or steps[-1][0] != k):
+            steps.append((k, d, du))
+    regions = []
+    for i, (k, d, du) in enumerate(steps):
+        # the shorter side of the step, up to the neighbouring step or the record end
+        left = steps[i - 1][0] + 1 if i > 0 else 0
+        right = steps[i + 1][0] + 1 if i + 1 < len(steps) else n
+        if k + 1 - left <= right - (k + 1):
+            regions.append((left, k + 1, -d, [(k, d, du)]))
+        else:
+            regions.append((k + 1, right, d, [(k, d, du)]))
+    merged = []
+    for reg in regions:
+        if merged and merged[-1][:2] == reg[:2]:
+            merged[-1][3].extend(reg[3])  # the steps into and out of one offset stretch
+        else:
+            merged.append(reg)
+    out = []
+    for a, b, size, parts in merged:
+        at_end = a == 0 or b == n
+        what = (
+            f"cut the {b - a} samples {'before' if a == 0 else 'after'} the step"
+            if at_end
+            else f"mark samples {a}..{b - 1} (or subtract the offset)"
+        )
+        told = "; ".join(f"steps by {d:+.4g} between t = {rec.time[k]:.6g} and {rec.time[k + 1]:.6g} s" for k, d, _ in parts)
+        du = max(p[2] for p in parts)
+        out.append(
+            _finding(
+                rec,
+                "offset_jump",
+                rec.output_name,
+                a,
+                b,
+                size,
+                rng,
+                f"output {told} while the input holds (its level changes {100 * du:.1f} % of its range): sensor zeroed or "
+                f"moved, or driven by something not recorded; {what}",
+                "cut" if at_end else "mark",
+            )
+        )
+    return out
+
+
+def _clipped(rec: Record, y: np.ndarray, rng: float) -> tuple[list[Finding], set[float]]:
+    """Findings for a record minimum/maximum the output sits on far more often than on other values."""
+    n = y.size
+    _, counts = np.unique(y, return_counts=True)
+    typical = float(np.median(counts))
+    out, limits = [], set()
+    for name, v in (("minimum", float(y.min())), ("maximum", float(y.max()))):
+        at = y == v
+        m = int(at.sum())
+        if m < max(FLAT_MIN, CLIP_FACTOR * typical) or v in limits:
+            continue
+        # a limit is approached: the signal spends time close to it; an isolated value (a stuck offset) is not
+        near = int(np.sum(~at & (np.abs(y - v) <= JUMP_REL * rng)))
+        if near < FLAT_MIN:
+            continue
+        limits.add(v)
+        runs = _runs(at)
+        longest = max(runs, key=lambda r: r[1] - r[0])
+        idx = np.flatnonzero(at)
+        out.append(
+            _finding(
+                rec,
+                "clipped",
+                rec.output_name,
+                idx[0],
+                idx[-1] + 1,
+                v - float(np.median(y)),
+                rng,
+                f"{m} samples ({m / n:.1%}) sit exactly at the record's {name} {v:.6g}, in {len(runs)} runs (the longest "
+                f"{longest[1] - longest[0]} samples from t = {rec.time[longest[0]]:.6g} s): a sensor or processing limit; mark "
+                "the samples at that value (if the actuator really rests there, keep them)",
+                "mark",
+            )
+        )
+    return out, limits
+
+
+def _flats(rec: Record) -> list[Finding]:
+    y, u = np.asarray(rec.y, float), np.asarray(rec.u, float)
+    n = y.size
+    if n < FLAT_MIN:
+        return []
+    rng, ru = robust_range(y), robust_range(u)
+    out, limits = _clipped(rec, y, rng)
+    eq = np.diff(y) == 0
+    p = min(float(eq.mean()), 0.99)
+    need = FLAT_MIN if p == 0 else max(FLAT_MIN, 1 + math.ceil(math.log(FLAT_P / n) / math.log(p)))
+    lo, hi = float(y.min()), float(y.max())
+    for a, b in _runs(eq):
+        b += 1  # runs of equal steps -> [start, stop) of equal samples
+        v = float(y[a])
+        if b - a < need or v in limits:
+            continue
+        extreme = "minimum" if v == lo else ("maximum" if v == hi else None)
+        move = float(np.ptp(u[a:b])) / ru if math.isfinite(ru) else 0.0
+        inp = (
+            "while the input is constant too (noise-free data?)"
+            if move == 0
+            else f"while the input spans {100 * move:.1f} % of its range"
+        )
+        why = f"at the record's {extreme}" if extreme else "inside the output's range"
+        chance = n * p ** (b - a - 1)
+        odds = f"{chance:.1e}" if chance > 1e-99 else "< 1e-99"
+        out.append(
+            _finding(
+                rec,
+                "flat",
+                rec.output_name,
+                a,
+                b,
+                v - float(np.median(y)),
+                rng,
+                f"output exactly {v:.6g} for {b - a} samples {why} {inp}: a stuck sensor or a held value "
+                f"(expected number of chance runs this long {odds})",
+                "cut" if (a == 0 or b == n) else "mark",
+            )
+        )
+    return out
+
+
+def _sampling(rec: Record, dt_rtol: float) -> list[Finding]:
+    t = np.asarray(rec.time, float)
+    n = t.size
+    if n < 3:
+        return []
+    d = np.diff(t)
+    med = float(np.median(d))
+    irregular = np.abs(d - med) > dt_rtol * med
+    if irregular.any():
+        gaps = [(float(t[k]), float(t[k + 1])) for k in np.flatnonzero(d > (1 + dt_rtol) * med)]
+        step = med
+        kept = True
+    elif rec.gaps:
+        gaps, step, kept = list(rec.gaps), float(rec.dt), False
+    else:
+        return []
+    out = []
+    span = float(t[-1] - t[0]) or 1.0
+    starts = np.array([g[0] for g in gaps])
+    ends = np.array([g[1] for g in gaps])
+    burst = ""
+    if len(gaps) >= 3:
+        runs = np.round((starts[1:] - ends[:-1]) / step).astype(int) + 1
+        vals, counts = np.unique(runs, return_counts=True)
+        if counts.max() >= 0.8 * runs.size:
+            burst = f"; bursts of {int(vals[np.argmax(counts)])} samples"
+    lengths = ends - starts if gaps else np.zeros(0)
+    if kept:
+        n_short = int(np.sum(irregular)) - len(gaps)
+        msg = (
+            f"{int(irregular.sum())} of {n - 1} steps off the median {med:.6g} s by more than {dt_rtol:.0%} ({len(gaps)} gap{'s' if len(gaps) != 1 else ''}"
+            + (f" of {lengths.min():.3g}..{lengths.max():.3g} s" if gaps else "")
+            + (f", {n_short} short steps" if n_short > 0 else "")
+            + f"){burst}; models need a uniform grid: load with --resample {med:.6g} (linear interpolation, gaps reported)"
+        )
+        first = int(np.flatnonzero(irregular)[0])
+        msg = f"first at t = {t[first]:.6g} s; " + msg
+        out.append(_finding(rec, "irregular_sampling", "time_s", 0, n, math.nan, math.nan, msg, "resample"))
+    else:
+        grid_in_gap = sum(int(np.sum((t > a) & (t < b))) for a, b in gaps)
+        msg = (
+            f"resampled record: {len(gaps)} gap{'s' if len(gaps) != 1 else ''} of {lengths.min():.3g}..{lengths.max():.3g} s bridged by linear interpolation"
+            f"{burst}; {grid_in_gap} of {n} samples ({grid_in_gap / n:.1%}) are interpolated, not measured: leave them out of the scores"
+        )
+        out.append(_finding(rec, "irregular_sampling", "time_s", 0, n, math.nan, math.nan, msg, "mark"))
+    for (a_t, b_t), L in zip(gaps, lengths):
+        if L < LONG_GAP_STEPS * step:
+            continue
+        # the samples strictly inside the gap (interpolated ones); kept stamps have none: then the two around it
+        a = int(np.searchsorted(t, a_t, side="right"))
+        b = int(np.searchsorted(t, b_t, side="left"))
+        if b <= a:
+            a, b = a - 1, b + 1
+        head, tail = (a_t - t[0]) / span, (t[-1] - b_t) / span
+        if min(head, tail) < CUT_SIDE:
+            if head <= tail:
+                b = int(np.searchsorted(t, b_t, side="left"))
+                a, what = 0, f"cut t < {b_t:.6g} s ({b} samples: the {100 * head:.1f} % of the record before the gap and the gap)"
+            else:
+                a = int(np.searchsorted(t, a_t, side="right"))
+                b, what = n, f"cut t > {a_t:.6g} s ({n - a} samples: the gap and the {100 * tail:.1f} % of the record after it)"
+            action = "cut"
+        else:
+            what, action = "simulate through it, leave it out of the scores", "mark"
+        out.append(
+            _finding(
+                rec,
+                "gap",
+                "time_s",
+                a,
+                b,
+                L,
+                math.nan,
+                f"{'no samples' if kept else 'bridged by interpolation'} for {L:.4g} s ({L / step:.0f} sample times) from t = {a_t:.6g} s; {what}",
+                action,
+            )
+        )
+    return out
+
+
+def check_record(record: Record, *, dt_rtol: float = DEFAULT_DT_RTOL) -> list[Finding]:
+    """Findings for one record, in time order (detectors and rules in the module docstring)."""
+    out = _sampling(record, dt_rtol)
+    constant = [
+        (c, x) for c, x in ((record.input_name, record.u), (record.output_name, record.y)) if x is not None and np.ptp(x) == 0
+    ]
+    for c, x in constant:
+        out.append(
+            _finding(
+                record,
+                "constant",
+                c,
+                0,
+                len(record),
+                math.nan,
+                math.nan,
+                f"'{c}' is {float(x[0]):.6g} throughout: nothing to identify from this record",
+                "drop",
+            )
+        )
+    if constant:
+        return out
+    out += _spikes(record, np.asarray(record.u, float), record.input_name)
+    if record.y is not None:
+        y = np.asarray(record.y, float)
+        spikes = _spikes(record, y, record.output_name)
+        # steps are looked for after the spikes are bridged: a spike inside a median window biases it
+        y_clean = y.copy()
+        for f in spikes:
+            a, b = f.index
+            y_clean[a:b] = np.interp(np.arange(a, b), [a - 1, b], [y[a - 1], y[b]])
+        out += spikes + _jumps(record, dt_rtol, y_clean) + _flats(record)
+    return sorted(out, key=lambda f: (f.index[0], f.kind))
+
+
+# -- across records ---------------------------------------------------------------------
+
+
+def _levels(recs: list[Record]) -> list[Finding]:
+    recs = [r for r in recs if r.y is not None]
+    if len(recs) < 2:
+        return []
+    lo = max(float(np.percentile(r.u, 1)) for r in recs)
+    hi = min(float(np.percentile(r.u, 99)) for r in recs)
+    if not hi > lo:
+        return []
+    edges = np.linspace(lo, hi, LEVEL_BINS + 1)
+    m = np.full((len(recs), LEVEL_BINS), np.nan)
+    for i, r in enumerate(recs):
+        b = np.digitize(r.u, edges[1:-1])
+        inside = (r.u >= lo) & (r.u <= hi)
+        for j in range(LEVEL_BINS):
+            sel = inside & (b == j)
+            if sel.sum() >= 3:
+                m[i, j] = np.median(r.y[sel])
+    ref = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan for c in m.T])
+    scale = float(np.nanmedian([robust_range(r.y) for r in recs]))
+    out = []
+    for i, r in enumerate(recs):
+        diff = m[i] - ref
+        others = np.sum(np.isfinite(m), axis=0) >= 2
+        diff = diff[np.isfinite(diff) & others]
+        if diff.size == 0 or not math.isfinite(scale):
+            continue
+        if (np.all(diff > 0) or np.all(diff < 0)) and float(np.min(np.abs(diff))) >= LEVEL_REL * scale:
+            size = float(np.median(diff))
+            note = " (with two records the odd one cannot be told)" if len(recs) == 2 else ""
+            out.append(
+                _finding(
+                    r,
+                    "level_mismatch",
+                    r.output_name,
+                    0,
+                    len(r),
+                    size,
+                    scale,
+                    f"whole run shifted by {size:+.4g} against the other records at every shared input level "
+                    f"({diff.size} bins){note}; drop it or subtract the offset",
+                    "drop",
+                )
+            )
+    return out
+
+
+def _input_ranges(recs: list[Record]) -> list[Finding]:
+    if len(recs) < 2:
+        return []
+    pct = [np.percentile(r.u, [0.5, 99.5]) for r in recs]
+    out = []
+    for i, r in enumerate(recs):
+        others = [p for j, p in enumerate(pct) if j != i]
+        lo, hi = min(p[0] for p in others), max(p[1] for p in others)
+        lo, hi = lo - RANGE_TOL * (hi - lo), hi + RANGE_TOL * (hi - lo)  # holds at the very end of the range are inside
+        outside = float(np.mean((r.u < lo) | (r.u > hi)))
+        span = float(pct[i][1] - pct[i][0])
+        ref = float(np.median([p[1] - p[0] for p in others]))
+        if outside > RANGE_OUT:
+            out.append(
+                _finding(
+                    r,
+                    "input_range",
+                    r.input_name,
+                    0,
+                    len(r),
+                    math.nan,
+                    math.nan,
+                    f"{100 * outside:.0f} % of the input lies outside the other records' range [{lo:.4g}, {hi:.4g}]: a model "
+                    "trained on them extrapolates here (keep it in training, not as a held-out record)",
+                    "check",
+                )
+            )
+        elif ref > 0 and span < RANGE_SPAN * ref:
+            out.append(
+                _finding(
+                    r,
+                    "input_range",
+                    r.input_name,
+                    0,
+                    len(r),
+                    span,
+                    span / ref,
+                    f"input span {span:.4g} is {100 * span / ref:.0f} % of the other records' median span {ref:.4g}",
+                    "check",
+                )
+            )
+    return out
+
+
+def _sample_times(recs: list[Record], dt_rtol: float) -> list[Finding]:
+    out = []
+    med = float(np.median([r.dt for r in recs]))
+    for r in recs:
+        if abs(r.dt - med) > dt_rtol * med:
+            out.append(
+                _finding(
+                    r,
+                    "dt_mismatch",
+                    "time_s",
+                    0,
+                    len(r),
+                    r.dt - med,
+                    math.nan,
+                    f"sample time {r.dt:.6g} s vs {med:.6g} s in most records; resample to {med:.6g} s if the model needs one grid",
+                    "resample",
+                )
+            )
+    seen = {}
+    for r in recs:
+        key = r.sha256 or None
+        if key is None:
+            continue
+        if key in seen:
+            out.append(
+                _finding(
+                    r, "duplicate", "*", 0, len(r), math.nan, math.nan, f"same content as {seen[key]}; drop one copy", "drop"
+                )
+            )
+        else:
+            seen[key] = r.name
+    return out
+
+
+def check_records(records: list[Record], *, per_record: bool = True, dt_rtol: float = DEFAULT_DT_RTOL) -> list[Finding]:
+    """Findings for a set of records: each record's own (``per_record``) then the comparisons across the set."""
+    records = list(records)
+    out = []
+    if per_record:
+        for r in records:
+            out += check_record(r, dt_rtol=dt_rtol)
+    if len(records) >= 2:
+        out += _sample_times(records, dt_rtol)
+        out += _levels(records)
+        out += _input_ranges(records)
+    return out

@@ -1,0 +1,162 @@
+"""`Record`: one measured (or synthetic) record: time, input, output and the story of how it was read.
+
+A record is normally on a uniform time grid (``dt``); `load_record` refuses
+irregular time stamps unless asked to resample them (then ``processing`` says
+how, and ``gaps`` lists every interval that was bridged by interpolation).
+Only `smafl check` keeps irregular stamps as they are, to report them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from smafl_jax._errors import DataError
+
+__all__ = ["Record", "DEFAULT_DT_RTOL", "check_time"]
+
+#: Relative tolerance on the spread of sample intervals before a record is called irregular.
+#: Logged time stamps are often rounded (1 ms stamps on a 10 ms clock jitter by 10 %), so
+#: jitter is accepted; gaps (a missing stretch, a paused logger) are not.
+DEFAULT_DT_RTOL = 0.15
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Record:
+    """One record: ``time`` (s), input ``u``, output ``y`` (or None), sample time ``dt`` and provenance.
+
+    ``extra``: other numeric columns (ambient temperature, load, branch labels...).
+    ``processing``: what was done to the data on loading, one sentence per step
+    (empty when the file was used exactly as written).  ``gaps``: ``(t_start, t_end)``
+    of every original sampling interval longer than the tolerance that resampling
+    bridged.  ``load``: a per-record load from the sidecar (``"load": 200``; its
+    unit in ``units["load"]``).  ``metadata``: the whole sidecar object.
+    """
+
+    time: np.ndarray
+    u: np.ndarray
+    y: np.ndarray | None
+    dt: float
+    input_name: str
+    output_name: str | None
+    extra: dict = dataclasses.field(default_factory=dict)
+    units: dict = dataclasses.field(default_factory=dict)
+    description: str = ""
+    path: str | None = None
+    sha256: str | None = None
+    processing: tuple[str, ...] = ()
+    gaps: tuple[tuple[float, float], ...] = ()
+    load: float | None = None
+    metadata: dict = dataclasses.field(default_factory=dict)
+    record_name: str = ""
+
+    def __len__(self) -> int:
+        return int(self.time.shape[0])
+
+    @property
+    def name(self) -> str:
+        """``record_name`` if given, else the file stem, else ``"record"``."""
+        if self.record_name:
+            return self.record_name
+        return Path(self.path).stem if self.path else "record"
+
+    def take(self, index) -> Record:
+        """Sub-record at integer indices or a boolean mask (keeps ``dt``; used for splits)."""
+        index = np.asarray(index)
+        return dataclasses.replace(
+            self,
+            time=self.time[index],
+            u=self.u[index],
+            y=None if self.y is None else self.y[index],
+            extra={k: v[index] for k, v in self.extra.items()},
+        )
+
+    @classmethod
+    def from_arrays(
+        cls,
+        time,
+        u,
+        y=None,
+        *,
+        input_name: str = "input",
+        output_name: str = "output",
+        extra: dict | None = None,
+        units: dict | None = None,
+        name: str = "",
+        load: float | None = None,
+        description: str = "",
+        dt_rtol: float = DEFAULT_DT_RTOL,
+    ) -> Record:
+        """Record from in-memory arrays (validated like a file: finite, 1-D, one length, uniform time)."""
+        where = f"<arrays {name}>" if name else "<arrays>"
+        time = np.asarray(time, dtype=np.float64)
+        u = np.asarray(u, dtype=np.float64)
+        cols = {"time_s": time, input_name: u}
+        if y is not None:
+            if output_name in cols:
+                raise DataError(where, f"output name {output_name!r} clashes with the time or input column")
+            cols[output_name] = np.asarray(y, dtype=np.float64)
+        for k, v in (extra or {}).items():
+            if k in cols:
+                raise DataError(where, f"extra column {k!r} clashes with another column")
+            cols[k] = np.asarray(v, dtype=np.float64)
+        shapes = {k: np.shape(v) for k, v in cols.items()}
+        if len(set(shapes.values())) != 1 or time.ndim != 1:
+            raise DataError(where, f"all columns must be 1-D of one length, got shapes {shapes}")
+        for k in ("time_s", input_name, output_name):
+            if k in cols and not np.all(np.isfinite(cols[k])):
+                bad = int(np.flatnonzero(~np.isfinite(cols[k]))[0])
+                raise DataError(where, "non-finite value", column=k, row=bad)
+        if time.size < 2:
+            raise DataError(where, f"need at least 2 samples, got {time.size}")
+        dt = check_time(where, "time_s", time, dt_rtol, line_of=lambda i: i)
+        return cls(
+            time=time,
+            u=u,
+            y=cols.get(output_name) if y is not None else None,
+            dt=dt,
+            input_name=input_name,
+            output_name=output_name if y is not None else None,
+            extra={k: v for k, v in cols.items() if k not in ("time_s", input_name, output_name)},
+            units=dict(units or {}),
+            description=description,
+            load=None if load is None else float(load),
+            record_name=name,
+        )
+
+
+def check_time(path, col: str, t: np.ndarray, rtol: float | None, line_of=lambda i: i + 2) -> float:
+    """Median sample time of strictly increasing stamps ``t``; `DataError` on duplicates, reversals and (``rtol``) gaps.
+
+    ``line_of(i)`` maps a sample index to the row number shown in messages (file
+    line numbers for files, sample indices for arrays).  ``rtol=None`` skips the
+    regularity test (used when the caller resamples or keeps irregular stamps).
+    """
+    d = np.diff(t)
+    bad = np.flatnonzero(d == 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise DataError(path, f"duplicated time value {float(t[k]):g} ({bad.size} duplicates in all)", column=col, row=line_of(k))
+    bad = np.flatnonzero(d < 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise DataError(path, f"time goes backwards ({float(t[k - 1]):g} -> {float(t[k]):g})", column=col, row=line_of(k))
+    dt = float(np.median(d))
+    if rtol is None:
+        return dt
+    bad = np.flatnonzero(np.abs(d - dt) > rtol * dt)
+    if bad.size:
+        k = int(bad[0])
+        longest = int(bad[np.argmax(d[bad])])
+        raise DataError(
+            path,
+            f"irregular sampling: step {float(d[k]):.6g} s vs median {dt:.6g} s (tolerance {rtol:.0%}) at t = {float(t[k]):.6g} s; "
+            f"{bad.size} irregular steps in all, the longest {float(d[longest]):.6g} s at t = {float(t[longest]):.6g} s. "
+            f"Fix: resample onto a uniform grid (CLI: --resample {dt:.6g}; Python: resample={dt:.6g}), which interpolates "
+            "linearly and reports every bridged gap, or cut the record at the gap",
+            column=col,
+            row=line_of(k + 1),
+        )
+    return dt
