@@ -5,59 +5,129 @@ the modules behind them are private.  Importing the package enables JAX's
 64-bit mode (identification at float32 is not accurate enough).
 """
 
-from . import _config  # noqa: F401  (enables x64 first)
-from ._cascade import Cascade
-from ._constraints import POSITIVE_FLOOR, constrain, log_jacobian, parameter, positive, positive_mask, unconstrain
-from ._data import Record, file_sha256, load_record
+import os as _os
+import sys as _sys
+from importlib import import_module as _import_module
+
 from ._errors import DataError, UserInputError
-from ._eupi import EUPI, threshold_grid, tilt_grid
-from ._io import (
-    atomic_savefig,
-    atomic_write_csv,
-    atomic_write_json,
-    atomic_write_text,
-    load_model,
-    load_model_file,
-    model_from_dict,
-    model_to_dict,
-    prepare_out_dir,
-    register_model,
-    save_model,
-    to_jsonable,
-)
-from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, rmse
-from ._operators import consistent_initial_state, play, play_assoc, play_scan, play_step, play_weighted
-from ._simulate import simulate, simulate_batch
-from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
 __version__ = "0.1.0"
 
-# identification
-# uncertainty
-from ._bayes import (
-    ChainTooShortWarning,
-    Posterior,
-    Prior,
-    SampleRun,
-    default_priors,
-    diagnostics,
-    load_priors,
-    load_run,
-    run_sampler,
-    summarize,
-)
+# The public names are imported on first use (PEP 562), so that `smafl --help` and `import smafl_jax`
+# do not pay for importing JAX, SciPy and matplotlib.  x64 must hold before any array is made: if
+# JAX is already imported it is switched now, otherwise JAX reads JAX_ENABLE_X64 when it is imported.
+if "jax" in _sys.modules:
+    from . import _config  # noqa: F401
+else:
+    _os.environ["JAX_ENABLE_X64"] = "True"
 
-# control
-from ._control import PID, ClosedLoop, IICompensator, closed_loop_metrics, simulate_closed_loop, sine_reference, step_reference
-from ._diagnose import diagnose
+_LAZY = {
+    "Cascade": "_cascade",
+    "POSITIVE_FLOOR": "_constraints",
+    "constrain": "_constraints",
+    "log_jacobian": "_constraints",
+    "parameter": "_constraints",
+    "positive": "_constraints",
+    "positive_mask": "_constraints",
+    "unconstrain": "_constraints",
+    "Record": "_data",
+    "file_sha256": "_data",
+    "load_record": "_data",
+    "EUPI": "_eupi",
+    "threshold_grid": "_eupi",
+    "tilt_grid": "_eupi",
+    "atomic_savefig": "_io",
+    "atomic_write_csv": "_io",
+    "atomic_write_json": "_io",
+    "atomic_write_text": "_io",
+    "load_model": "_io",
+    "load_model_file": "_io",
+    "model_from_dict": "_io",
+    "model_to_dict": "_io",
+    "prepare_out_dir": "_io",
+    "register_model": "_io",
+    "save_model": "_io",
+    "to_jsonable": "_io",
+    "e_mean": "_metrics",
+    "error_ratio": "_metrics",
+    "max_abs_error": "_metrics",
+    "mean_abs_error": "_metrics",
+    "metrics": "_metrics",
+    "rmse": "_metrics",
+    "consistent_initial_state": "_operators",
+    "play": "_operators",
+    "play_assoc": "_operators",
+    "play_scan": "_operators",
+    "play_step": "_operators",
+    "play_weighted": "_operators",
+    "simulate": "_simulate",
+    "simulate_batch": "_simulate",
+    "PAPER_K1": "_thermal",
+    "PAPER_K2": "_thermal",
+    "JouleThermal": "_thermal",
+    "effective_voltage": "_thermal",
+    "thermal_step": "_thermal",
+    "ChainTooShortWarning": "_bayes",
+    "Posterior": "_bayes",
+    "Prior": "_bayes",
+    "SampleRun": "_bayes",
+    "default_priors": "_bayes",
+    "diagnostics": "_bayes",
+    "load_priors": "_bayes",
+    "load_run": "_bayes",
+    "run_sampler": "_bayes",
+    "summarize": "_bayes",
+    "PID": "_control",
+    "ClosedLoop": "_control",
+    "IICompensator": "_control",
+    "closed_loop_metrics": "_control",
+    "simulate_closed_loop": "_control",
+    "sine_reference": "_control",
+    "step_reference": "_control",
+    "diagnose": "_diagnose",
+    "EFFECT_NAMES": "_effects",
+    "EFFECTS": "_effects",
+    "ExtendedModel": "_effects",
+    "SOLVERS": "_fit",
+    "FitResult": "_fit",
+    "as_fit_data": "_fit",
+    "default_trainable": "_fit",
+    "fit": "_fit",
+    "fit_many": "_fit",
+    "init_linear": "_fit",
+    "init_profile": "_fit",
+    "fit_records": "_multi_record",
+    "JouleLag": "_joule_lag",
+    "Preisach": "_preisach",
+    "split_masks": "_split",
+    "SweepResult": "_sweep",
+    "stack_models": "_sweep",
+    "sweep": "_sweep",
+}
 
-# residual diagnosis and effects
-from ._effects import EFFECT_NAMES, EFFECTS, ExtendedModel
-from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
-from ._joule_lag import JouleLag
-from ._preisach import Preisach
-from ._split import split_masks
-from ._sweep import SweepResult, stack_models, sweep
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from . import _config  # noqa: F401  (x64 before the first array)
+
+    value = getattr(_import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+def _load_all():
+    """Import every public module (registers all model classes for JSON loading)."""
+    from . import _config  # noqa: F401
+
+    for module in sorted(set(_LAZY.values())):
+        _import_module(f".{module}", __name__)
+
 
 __all__ = [
     "as_fit_data",
@@ -86,6 +156,7 @@ __all__ = [
     "file_sha256",
     "fit",
     "fit_many",
+    "fit_records",
     "FitResult",
     "IICompensator",
     "init_linear",

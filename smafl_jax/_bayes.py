@@ -54,6 +54,8 @@ __all__ = [
     "SampleRun",
     "ChainTooShortWarning",
     "default_priors",
+    "check_model_supported",
+    "resolve_walkers",
     "load_priors",
     "run_sampler",
     "load_run",
@@ -165,9 +167,22 @@ def load_priors(path):
 
 
 def _data_scale(data):
-    ys = np.concatenate([y for _, y, _ in data])
-    us = np.concatenate([u for u, _, _ in data])
-    yr = float(np.ptp(ys)) or float(np.max(np.abs(ys))) or 1.0
+    """(output range, max |input|) of the records; `UserInputError` when their squares overflow float64.
+
+    The Gaussian / Student-t likelihoods sum squared residuals, so values whose
+    squares are not finite (magnitudes beyond ~1e150) cannot be sampled: the
+    units must be rescaled.
+    """
+    ys = np.concatenate([np.asarray(y, dtype=np.float64) for _, y, _ in data])
+    us = np.concatenate([np.asarray(u, dtype=np.float64) for u, _, _ in data])
+    with np.errstate(over="ignore", invalid="ignore"):
+        for what, x in (("output", ys), ("input", us)):
+            if not np.isfinite(np.sum(np.square(x))):
+                raise UserInputError(
+                    f"the {what} values (up to {float(np.max(np.abs(x))):.3g}) are too large: their squares overflow "
+                    "float64; rescale the column to other units"
+                )
+        yr = float(np.ptp(ys)) or float(np.max(np.abs(ys))) or 1.0
     return yr, float(np.max(np.abs(us))) or 1.0
 
 
@@ -184,8 +199,9 @@ def default_priors(names, data):
     table = {
         "thermal.k1": Prior("lognormal", math.log(0.05), 2.0),
         "k1": Prior("lognormal", math.log(0.05), 2.0),
-        "thermal.k2": Prior("lognormal", math.log(0.05 * yr / umax**2), 3.0),
-        "k2": Prior("lognormal", math.log(0.05 * yr / umax**2), 3.0),
+        # in log space: yr / umax^2 can over- or underflow for extreme units
+        "thermal.k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
+        "k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
         "noise.sigma": Prior("halfnormal", scale=yr),
     }
     out = {}
@@ -254,6 +270,25 @@ def _ridge_lstsq(A, y, ridge):
     return jnp.linalg.lstsq(Aa, ya)[0]
 
 
+def check_model_supported(model, where="model"):
+    """`UserInputError` for models the posterior cannot handle (a diagnose `ExtendedModel` and its effects)."""
+    if type(model).__name__ == "ExtendedModel":
+        raise UserInputError(
+            f"{where}: holds an ExtendedModel (base model + effects, written by `smafl diagnose`), which sampling "
+            "does not support; sample its base model instead (base_fit.json beside it, or a fit.json from `smafl fit`)"
+        )
+
+
+def resolve_walkers(ndim, n_walkers=None):
+    """Number of emcee walkers: default ``max(32, 2 ndim + 2)``, rounded up to even; at least ``2 ndim``."""
+    if n_walkers is None:
+        n_walkers = max(32, 2 * ndim + 2)
+    n_walkers = int(n_walkers) + int(n_walkers) % 2
+    if n_walkers < 2 * ndim:
+        raise UserInputError(f"need at least 2 x {ndim} = {2 * ndim} walkers for {ndim} parameters, got {n_walkers}")
+    return n_walkers
+
+
 class Posterior:
     """Log-posterior of a model's trainable parameters and the noise scale, in unconstrained coordinates.
 
@@ -286,6 +321,9 @@ class Posterior:
             raise UserInputError(f"linear must be one of {LINEAR_MODES}, got {linear!r}")
         if not (float(nu) > 0):
             raise UserInputError(f"Student-t degrees of freedom must be > 0, got {nu}")
+        if gain_scale is not None and not (math.isfinite(float(gain_scale)) and float(gain_scale) > 0):
+            raise UserInputError(f"gain_scale (prior sd of the gains) must be > 0, got {gain_scale}")
+        check_model_supported(model)
         self.data = as_fit_data(data, dt)
         self.noise, self.nu, self.linear, self.prior_only = noise, float(nu), linear, bool(prior_only)
         spec = default_trainable(model) if trainable is None else trainable
@@ -601,11 +639,7 @@ def run_sampler(
     if n_steps < 1:
         raise UserInputError(f"number of steps must be >= 1, got {n_steps}")
     ndim = posterior.ndim
-    if n_walkers is None:
-        n_walkers = max(32, 2 * ndim + 2)
-    n_walkers = int(n_walkers) + int(n_walkers) % 2
-    if n_walkers < 2 * ndim:
-        raise UserInputError(f"need at least 2 x {ndim} = {2 * ndim} walkers for {ndim} parameters, got {n_walkers}")
+    n_walkers = resolve_walkers(ndim, n_walkers)
     rng = np.random.default_rng(seed)
     backend = None
     done = 0
@@ -640,12 +674,16 @@ def run_sampler(
         if not done:
             backend.reset(n_walkers, ndim)
     sampler = emcee.EnsembleSampler(n_walkers, ndim, posterior, vectorize=True, backend=backend)
+    start = None
     if done:
         state = None  # emcee restores the last position, log-probabilities and random state
         print(f"resuming {path} at step {done} of {n_steps}", file=sys.stderr)
     else:
         sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
         state = posterior.initial_ball(n_walkers, rng) if initial is None else np.asarray(initial)
+        start = np.array(state, dtype=np.float64)
+        if path is not None:
+            _store_start(backend, start)
     remaining = n_steps - done
     if remaining > 0:
         if state is None:
@@ -661,14 +699,53 @@ def run_sampler(
                 on_step(done + i + 1)
         if path is not None:
             _checkpoint(path)
-    return _collect(sampler.backend, posterior.names, str(path) if path is not None else None, done)
+    return _collect(sampler.backend, posterior.names, str(path) if path is not None else None, done, start)
 
 
-def _collect(backend, names, path, resumed_from):
+_START = "start_coords"  # dataset beside emcee's in the HDF5 group: the walkers' starting positions
+
+
+def _store_start(backend, start):
+    with backend.open("a") as f:
+        g = f[backend.name]
+        if _START in g:
+            del g[_START]
+        g.create_dataset(_START, data=start)
+
+
+def _read_start(backend):
+    try:
+        with backend.open() as f:
+            g = f[backend.name]
+            return np.asarray(g[_START]) if _START in g else None
+    except (OSError, KeyError, AttributeError):
+        return None
+
+
+def _acceptance_from_chain(chain, start):
+    """Per-walker fraction of steps that moved: a stretch move is accepted iff the position changes.
+
+    Counted from the stored chain rather than emcee's running ``accepted`` total,
+    which a hard kill between emcee's writes can leave one step ahead of the
+    chain (so a resumed run would count that step twice).  Without the stored
+    start (files written by older versions) the first step is not counted.
+    """
+    if start is not None and start.shape == chain.shape[1:]:
+        chain = np.concatenate([start[None], chain], axis=0)
+    if chain.shape[0] < 2:
+        return np.zeros(chain.shape[1])
+    moved = np.any(chain[1:] != chain[:-1], axis=-1)
+    return moved.mean(axis=0)
+
+
+def _collect(backend, names, path, resumed_from, start=None):
+    chain = np.asarray(backend.get_chain())
+    if start is None and path is not None:
+        start = _read_start(backend)
     return SampleRun(
-        chain=np.asarray(backend.get_chain()),
+        chain=chain,
         log_prob=np.asarray(backend.get_log_prob()),
-        acceptance_fraction=np.asarray(backend.accepted) / max(int(backend.iteration), 1),
+        acceptance_fraction=_acceptance_from_chain(chain, start),
         names=list(names),
         path=path,
         resumed_from=resumed_from,

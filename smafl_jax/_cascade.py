@@ -15,6 +15,8 @@ not on ``k2``.  ``k2`` only has meaning for the Joule model fitted alone
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 
 from . import _config  # noqa: F401
@@ -42,6 +44,13 @@ class Cascade(eqx.Module):
         """Displacement for voltage record ``u`` sampled every ``dt`` seconds."""
         theta = self.thermal.simulate(u, dt)
         return self.hysteresis.simulate(self.thermal.effective_voltage(theta))
+
+    def with_method(self, method: str) -> Cascade:
+        """Copy with both parts evaluated by ``method`` ("auto", "scan", "assoc", "chunked", "segmented")."""
+        return Cascade(
+            thermal=dataclasses.replace(self.thermal, method=method),
+            hysteresis=dataclasses.replace(self.hysteresis, method=method),
+        )
 
     @classmethod
     def from_range(cls, u_max, *, thermal=None, **eupi_kwargs):

@@ -169,10 +169,7 @@ def plant_init(model, u_init):
     thermal, hyst = _parts(model)
     r, _ = hyst._bank()
     u_init = _f64(u_init)
-    if thermal is not None and thermal.init == "steady":
-        theta = thermal.gain * u_init**2
-    else:
-        theta = jnp.zeros_like(u_init)
+    theta = thermal.initial_state(u_init) if thermal is not None else jnp.zeros_like(u_init)
     return theta, jnp.zeros_like(r), jnp.asarray(True)
 
 
@@ -197,8 +194,9 @@ def plant_step(model, state, u, dt):
     ops = jnp.where(fresh, ops0, ops)
     ops, _ = play_step(ops, s, r, al)
     n_poly = np.shape(hyst.poly)[0]
+    sign = float(hyst.orientation)  # a length sensor reads the operator sum with a minus sign
     row = jnp.concatenate(
-        [s[None], ops, jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0], jnp.ones(1)]
+        [sign * s[None], sign * ops, jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0], jnp.ones(1)]
     )
     y = row @ hyst.linear_weights()
     return (theta, ops, jnp.asarray(False)), y
@@ -241,7 +239,9 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
         ym = measure(y, n_k)
         e = r_k - ym
         if comp is not None:
-            u2 = jnp.clip(u2 + dt * comp.K * (r_k - yhat), pid.umin, pid.umax)
+            # the integrator must climb the forward model's slope: flip for a falling (length) output
+            slope = float(_parts(comp.forward_model)[1].orientation)
+            u2 = jnp.clip(u2 + dt * comp.K * slope * (r_k - yhat), pid.umin, pid.umax)
             cst, yhat = plant_step(H, cst, u2, dt)
         p_term = pid.kp * e
         deriv = (pid.tf * deriv - pid.kd * (ym - ym_prev)) / (pid.tf + dt)

@@ -116,6 +116,46 @@ def choose_base(record):
     )
 
 
+def check_record(record):
+    """Refuse records a diagnosis cannot identify anything from, with one line naming the file and column."""
+    where = f"{record.path or record.name}"
+    if record.y is None:
+        raise UserInputError(f"{where}: diagnose needs an output column")
+    u, y = np.asarray(record.u, float), np.asarray(record.y, float)
+    for col, v in ((record.input_name, u), (record.output_name, y)):
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise UserInputError(f"{where}: column '{col}' has a non-finite value at sample {int(bad[0])}")
+    if np.ptp(u) == 0:
+        raise UserInputError(
+            f"{where}: input column '{record.input_name}' is constant ({u[0]:g}) over all {u.size} samples: "
+            "a diagnosis needs an input that varies"
+        )
+    if np.ptp(y) == 0:
+        raise UserInputError(f"{where}: output column '{record.output_name}' is constant ({y[0]:g}): nothing to fit")
+    if is_voltage(record.input_name) and float(u.max()) <= 0:
+        raise UserInputError(
+            f"{where}: voltage column '{record.input_name}' is <= 0 everywhere (max {u.max():g} V); the actuator is "
+            "driven by positive voltages (negate the column if the sign convention is inverted)"
+        )
+
+
+def _not_applicable_reason(name, base, rate_free, split):
+    if name == NONLOCAL_MEMORY["name"]:
+        return (
+            "the Preisach replacement is offered for rate-free records only (a 'branch' column or a sample time >= "
+            f"{RATE_FREE_DT:g} s); this record has dynamics (sample time {split.train[0].dt:g} s, no 'branch' column)"
+        )
+    cls = EFFECTS[name]
+    if "thermal" in cls.needs and not isinstance(base, Cascade):
+        return "it acts on the Joule thermal model, and this record's base model has none (not a voltage input with dynamics)"
+    if "time" in cls.needs and rate_free:
+        return "it needs time dynamics, and this record is rate-free"
+    if "load" in cls.needs:
+        return "it needs a load column (load, force, mass, weight) and a time split"
+    return "not applicable"
+
+
 def load_column(record):
     for k in record.extra:
         if any(n in k.lower() for n in LOAD_NAMES):
@@ -688,6 +728,359 @@ def effect_evidence(model, split, names, residual):
     return out
 
 
+# -- calibrated selection (issue 13) ------------------------------------------------------
+
+#: Defaults of the calibrated rule (see `diagnose`).  ``n_null`` is kept small on purpose (each null record costs
+#: a base refit and an effect fit); the (1 - fpr) quantile of so few null gains is estimated with a normal
+#: approximation and, in addition, the gain must exceed every null gain (an empirical rank p <= 1 / (n_null + 1)).
+CALIBRATED_DEFAULTS = {"fpr": 0.01, "n_null": 10, "n_folds": 3, "ar_max_order": 20, "ambiguity": 0.10}
+SELECTION_RULES = ("calibrated", "legacy")
+
+
+def _segment_index(record):
+    """Record indices of the segments of `whole_record_split` (one per branch, or the whole record)."""
+    if "branch" in record.extra:
+        b = np.asarray(record.extra["branch"]).astype(int)
+        return [np.flatnonzero(b == k) for k in dict.fromkeys(b.tolist())]
+    return [np.arange(len(record))]
+
+
+def fold_splits(record, n_folds=3):
+    """Cross-validation folds, each a `Split`: K contiguous time blocks, each held out in turn (the model runs
+    from t = 0 over the whole record, the other blocks train), or for a branch record the three branch residues."""
+    if "branch" in record.extra:
+        out = []
+        for r in (0, 1, 2):
+            try:
+                out.append(make_split(record, holdout_residue=r))
+            except UserInputError:  # too few branches for this residue
+                continue
+        return out
+    n = len(record)
+    if n_folds < 2 or n < 20 * n_folds:
+        raise UserInputError(f"{n_folds} folds need at least {20 * n_folds} samples (and n_folds >= 2); the record has {n}")
+    lc = load_column(record)
+    edges = np.linspace(0, n, n_folds + 1).round().astype(int)
+    full = np.arange(n)
+    out = []
+    for j in range(n_folds):
+        held = (full >= edges[j]) & (full < edges[j + 1])
+        label = f"{edges[j]}..{edges[j + 1] - 1}"
+        out.append(
+            Split(
+                "time-fold",
+                f"block {label} held out, the rest trained (model run from t = 0)",
+                [_segment(record, full, mask=~held, load_col=lc)],
+                [_segment(record, full, mask=held, load_col=lc)],
+                [f"all but {label}"],
+                [label],
+            )
+        )
+    return out
+
+
+def _ar_fit(e, max_order):
+    """AR(p) model of a residual series, p <= ``max_order`` chosen by BIC on a common sample; made stable.
+
+    Returns ``(coef, innovations, mean, spectral_radius)``; coefficients whose characteristic roots reach
+    the unit circle are shrunk (a_i -> a_i s^i) to radius 0.995, so that simulated nulls stay stationary.
+    """
+    e = np.asarray(e, float)
+    mu = float(e.mean())
+    x = e - mu
+    n = x.size
+    pmax = int(min(max_order, max(n // 10, 0)))
+    y0 = x[pmax:]
+    best = (len(y0) * np.log(max(float(np.mean(y0**2)), 1e-300)), np.zeros(0), y0)
+    for p in range(1, pmax + 1):
+        X = np.column_stack([x[pmax - i : n - i] for i in range(1, p + 1)])
+        coef, *_ = np.linalg.lstsq(X, y0, rcond=None)
+        innov = y0 - X @ coef
+        bic = len(y0) * np.log(max(float(np.mean(innov**2)), 1e-300)) + p * np.log(len(y0))
+        if bic < best[0]:
+            best = (bic, coef, innov)
+    _, coef, innov = best
+    rho = float(np.max(np.abs(np.roots(np.r_[1.0, -coef])))) if coef.size else 0.0
+    if rho >= 0.995:
+        coef = coef * (0.995 / rho) ** np.arange(1, coef.size + 1)
+        rho = 0.995
+    return coef, innov - innov.mean(), mu, rho
+
+
+def _ar_simulate(coef, innov, mu, rho, n, rng):
+    """One AR path of length ``n`` driven by innovations resampled (with replacement) from the fitted ones."""
+    from scipy.signal import lfilter
+
+    burn = int(min(20000, max(200, 10 * coef.size, 5.0 / max(1.0 - rho, 1e-3))))
+    eta = rng.choice(innov, size=n + burn, replace=True)
+    return mu + lfilter([1.0], np.r_[1.0, -coef], eta)[burn:]
+
+
+def null_records(record, split, model, n_null, rng, max_order=20):
+    """Parametric-bootstrap null records: ``model`` (fitted on the training split) simulated over the whole record
+    plus an AR(p) path fitted to its own training residuals (innovations resampled).  Returns ``(records, info)``."""
+    _, res_tr = score(model, split.train)
+    coef, innov, mu, rho = _ar_fit(res_tr, max_order)
+    full = whole_record_split(record)
+    yhat = np.empty(len(record))
+    for idx, seg in zip(_segment_index(record), full.train):
+        yhat[idx] = simulate_segment(model, seg)
+    recs = []
+    for _ in range(n_null):
+        ystar = yhat.copy()
+        for idx in _segment_index(record):
+            ystar[idx] += _ar_simulate(coef, innov, mu, rho, idx.size, rng)
+        recs.append(dataclasses.replace(record, y=ystar))
+    info = {
+        "residual_model": f"AR({coef.size}) fitted to the training residuals (BIC, order <= {max_order}), innovations resampled",
+        "ar_order": int(coef.size),
+        "ar_spectral_radius": rho,
+        "innovation_sd": float(np.std(innov)) if innov.size else 0.0,
+        "residual_sd": float(np.std(res_tr)),
+    }
+    return recs, info
+
+
+def _fit_on(name, start, split, record, *, new):
+    """Refit ``start`` on another split: warm start of every parameter (``new=False``), or ``start`` (a fitted model
+    without ``name``) plus effect ``name`` from its grid of starts (``new=True``, the procedure of the real fit)."""
+    if name == NONLOCAL_MEMORY["name"]:
+        u = np.asarray(record.u, float)
+        return cv_fit_preisach(split.train, float(u.min()), float(u.max()))[0]
+    if new:
+        have = list(start.effect_names) if isinstance(start, ExtendedModel) else []
+        return fit_extended(start, have + [name], split)[0]
+    return fit_extended(start, [], split)[0]
+
+
+def _held(model, split):
+    te, _ = score(model, split.test)
+    return te
+
+
+def calibration_gates(
+    record,
+    split,
+    current,
+    current_te,
+    name,
+    cand,
+    cand_te,
+    *,
+    min_gain,
+    fpr,
+    n_null,
+    n_folds,
+    holdout_residue,
+    rng,
+    fold_cache,
+    max_order=20,
+    verbose=False,
+):
+    """The calibrated acceptance test of candidate ``name`` (fitted model ``cand``) against ``current``.
+
+    Gates, cheapest first (a failing gate stops the test):
+
+    1. ``gain``: held-out RMSE gain on the main split >= ``min_gain``;
+    2. ``max_error``: held-out max |error| (the numerator of e_r) not raised;
+    3. ``folds``: on each of K contiguous blocks held out in turn (branch records: the three branch residues),
+       both models refitted from their fitted values, the gain is positive in all folds or all but one;
+    4. ``null``: the gain exceeds the (1 - fpr) quantile of the gains the same effect reaches on ``n_null``
+       null records simulated from ``current`` with its own residual structure (`null_records`), each refitted
+       exactly like the real record (current: warm start; effect: its grid of starts); the quantile is a normal
+       approximation (mean + z sd of the null gains) and the gain must also exceed every null gain.
+
+    Returns a JSON-ready dict: gates, per-fold gains, the null distribution and its threshold, ``accepted``.
+    """
+    from scipy import stats
+
+    base_h, base_max = current_te["rmse"], current_te["max_abs_error"]
+    gain = 1.0 - cand_te["rmse"] / base_h if base_h > 0 else 0.0
+    out = {"gain": gain, "gates": {}, "accepted": False}
+    out["gates"]["gain"] = bool(gain >= min_gain)
+    if not out["gates"]["gain"]:
+        out["reason"] = f"held-out gain {100 * gain:.1f} % < {100 * min_gain:.0f} %"
+        return out
+    out["heldout_max_abs_error"] = {"before": base_max, "after": cand_te["max_abs_error"]}
+    out["gates"]["max_error"] = bool(cand_te["max_abs_error"] <= base_max)
+    if not out["gates"]["max_error"]:
+        out["reason"] = f"raises the held-out max |error| ({base_max:.4g} -> {cand_te['max_abs_error']:.4g})"
+        return out
+    t0 = time.time()
+    folds = []
+    splits = fold_cache.setdefault("splits", fold_splits(record, n_folds))
+    for j, fs in enumerate(splits):
+        key = (id(current), j)
+        if key not in fold_cache:
+            cm = _fit_on(None, current, fs, record, new=False) if not isinstance(current, Preisach) else current
+            fold_cache[key] = _held(cm, fs)
+        b = fold_cache[key]
+        c = _held(_fit_on(name, cand, fs, record, new=False), fs)
+        folds.append(
+            {
+                "heldout": fs.test_labels,
+                "rmse_before": b["rmse"],
+                "rmse_after": c["rmse"],
+                "gain": 1.0 - c["rmse"] / b["rmse"] if b["rmse"] > 0 else 0.0,
+                "max_abs_error_before": b["max_abs_error"],
+                "max_abs_error_after": c["max_abs_error"],
+            }
+        )
+    n_pos = sum(f["gain"] > 0 for f in folds)
+    out["folds"] = folds
+    out["folds_positive"] = f"{n_pos}/{len(folds)}"
+    out["gates"]["folds"] = bool(len(folds) >= 2 and n_pos >= len(folds) - 1)
+    _log(f"  {name}: fold gains {[round(f['gain'], 3) for f in folds]} ({time.time() - t0:.1f} s)", verbose)
+    if not out["gates"]["folds"]:
+        out["reason"] = f"held-out gain positive in only {n_pos} of {len(folds)} folds"
+        return out
+    t0 = time.time()
+    recs, info = null_records(record, split, current, n_null, rng, max_order)
+    null_gains = []
+    for r in recs:
+        ns = make_split(r, holdout_residue=holdout_residue)
+        cm = _fit_on(None, current, ns, r, new=False) if not isinstance(current, Preisach) else current
+        nm = _fit_on(name, cm, ns, r, new=True)
+        b, c = _held(cm, ns), _held(nm, ns)
+        null_gains.append(1.0 - c["rmse"] / b["rmse"] if b["rmse"] > 0 else 0.0)
+    g = np.asarray(null_gains)
+    z = float(stats.norm.ppf(1.0 - fpr))
+    q = float(g.mean() + z * g.std(ddof=1)) if g.size > 1 else float(g.max())
+    threshold = max(q, float(g.max()))
+    out["null"] = {
+        **info,
+        "n_records": int(g.size),
+        "gains": g.tolist(),
+        "mean": float(g.mean()),
+        "sd": float(g.std(ddof=1)) if g.size > 1 else 0.0,
+        "max": float(g.max()),
+        "quantile_normal": q,
+        "fpr": fpr,
+        "threshold": threshold,
+        "p_rank": float((1 + np.sum(g >= gain)) / (g.size + 1)),
+        "seconds": time.time() - t0,
+    }
+    out["gates"]["null"] = bool(gain > threshold)
+    _log(
+        f"  {name}: gain {gain:.3f} vs null mean {g.mean():.3f}, max {g.max():.3f}, threshold {threshold:.3f} "
+        f"({time.time() - t0:.1f} s)",
+        verbose,
+    )
+    if not out["gates"]["null"]:
+        out["reason"] = (
+            f"held-out gain {100 * gain:.1f} % within the null distribution (threshold {100 * threshold:.1f} % at fpr {fpr:g}, "
+            f"{g.size} null records)"
+        )
+        return out
+    out["accepted"] = True
+    out["reason"] = "passes every gate"
+    return out
+
+
+def _select_calibrated(record, split, base, base_te, candidates, fitted, *, min_gain, max_effects, cal, holdout_residue, verbose):
+    """Calibrated selection over the fitted candidates; returns ``(selected, chosen, ambiguous)``.
+
+    Candidates are tested in order of held-out RMSE (`calibration_gates`); the best accepted one is selected;
+    other accepted ones within ``ambiguity`` (10 %) of its held-out RMSE form the ambiguous set (reported, not
+    added).  A second effect is added only if the combined model passes the same gates against the one-effect
+    model (its null records are simulated from the one-effect model).
+    """
+    rng = np.random.default_rng(cal["seed"])
+    fold_cache = {}
+    kw = dict(
+        min_gain=min_gain,
+        fpr=cal["fpr"],
+        n_null=cal["n_null"],
+        n_folds=cal["n_folds"],
+        holdout_residue=holdout_residue,
+        fold_cache=fold_cache,
+        max_order=cal["ar_max_order"],
+        verbose=verbose,
+    )
+    fitted_c = sorted((c for c in candidates if c.get("fitted")), key=lambda c: c["heldout_rmse"])
+    for c in fitted_c:
+        m = fitted[c["name"]][0]
+        c["calibration"] = calibration_gates(record, split, base, base_te, c["name"], m, _held(m, split), rng=rng, **kw)
+        c["accepted"] = c["calibration"]["accepted"]
+    accepted = [c for c in fitted_c if c["accepted"]]
+    if not accepted:
+        return [], base, []
+    first = accepted[0]
+    selected, chosen = [first["name"]], fitted[first["name"]][0]
+    ambiguous = [c["name"] for c in accepted if c["heldout_rmse"] <= (1.0 + cal["ambiguity"]) * first["heldout_rmse"]]
+    cur_te = _held(chosen, split)
+    for c in accepted[1:]:
+        if len(selected) >= max_effects or isinstance(chosen, Preisach):
+            break
+        if c["name"] in ambiguous or c["name"] == NONLOCAL_MEMORY["name"]:
+            continue
+        m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
+        te2 = _held(m2, split)
+        gate = calibration_gates(record, split, chosen, cur_te, c["name"], m2, te2, rng=rng, **kw)
+        c["combined_with"] = {
+            "effects": selected + [c["name"]],
+            "heldout_rmse": te2["rmse"],
+            "calibration": gate,
+            "accepted": gate["accepted"],
+        }
+        if gate["accepted"]:
+            selected, chosen, cur_te = selected + [c["name"]], m2, te2
+    return selected, chosen, ambiguous if len(ambiguous) > 1 else []
+
+
+def _selection_doc(rule, cal, min_gain, candidates):
+    """The selection rule as applied, for diagnosis.json (with the legacy decision of each fitted candidate)."""
+    legacy = [c["name"] for c in candidates if c.get("legacy_accepted")]
+    if rule == "legacy":
+        return {
+            "rule": "legacy",
+            "description": f"held-out RMSE gain >= {100 * min_gain:g} % on one split and lower training BIC (issue 6); "
+            "no calibrated false-positive rate",
+            "legacy_accepted": legacy,
+        }
+    return {
+        "rule": "calibrated",
+        "description": (
+            f"accepted when (1) the held-out RMSE gain >= {100 * min_gain:g} %, (2) the held-out max |error| is not "
+            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds "
+            f"({cal['n_folds']} contiguous time blocks, or the 3 branch residues), both models refitted per fold, and "
+            f"(4) the gain exceeds the (1 - fpr) quantile (normal approximation) and the maximum of the gains the same "
+            f"effect reaches on {cal['n_null']} null records (the fitted model without it plus an AR fit of its own "
+            "training residuals, refitted like the record)"
+        ),
+        "false_positive_rate": cal["fpr"],
+        "n_null_records": cal["n_null"],
+        "n_folds": cal["n_folds"],
+        "ambiguity_tolerance": cal["ambiguity"],
+        "seed": cal["seed"],
+        "note": (
+            f"{cal['n_null']} null records is a small number chosen for speed: the quantile at fpr {cal['fpr']:g} is "
+            "extrapolated from their mean and standard deviation, not counted"
+        ),
+        "legacy_accepted": legacy,
+    }
+
+
+def _decisions(candidates, selected, ambiguous, rule):
+    """One plain decision per candidate, so that a report never lists several 'accepted' beside one selected."""
+    for c in candidates:
+        n = c["name"]
+        if n in selected:
+            c["decision"] = "selected" if selected[0] == n else f"selected (added to {selected[0]})"
+        elif not c.get("fitted"):
+            c["decision"] = "not fitted (" + (
+                "no score-test evidence)" if not c.get("plausible") else "ranked below max_candidates)"
+            )
+        elif c.get("accepted") and n in ambiguous:
+            c["decision"] = f"passes; ambiguous with {selected[0]} (data cannot separate them)"
+        elif c.get("accepted"):
+            c["decision"] = f"passes alone; not added ({', '.join(selected)} selected)"
+        elif rule == "calibrated":
+            c["decision"] = "rejected: " + c.get("calibration", {}).get("reason", "not accepted")
+        else:
+            c["decision"] = "rejected: held-out gain < min_gain or BIC not lower"
+
+
 # -- diagnosis -------------------------------------------------------------------------
 
 
@@ -708,6 +1101,11 @@ def diagnose(
     holdout_residue=2,
     refit=True,
     verbose=True,
+    rule="calibrated",
+    fpr=CALIBRATED_DEFAULTS["fpr"],
+    n_null=CALIBRATED_DEFAULTS["n_null"],
+    n_folds=CALIBRATED_DEFAULTS["n_folds"],
+    seed=0,
 ):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
 
@@ -715,20 +1113,42 @@ def diagnose(
     held-out figures are theirs).  With ``refit`` the selected structure is
     also refitted on the whole record (`refit_whole_record`): ``result["deployed"]``
     and, for `write_diagnosis`, ``result["_deployed_models"]``.
+
+    ``rule="calibrated"`` (default, issue 13) accepts an effect only through `calibration_gates` (held-out gain
+    >= ``min_gain``, max error not raised, gain positive in all or all but one of ``n_folds`` folds, gain above
+    the (1 - ``fpr``) quantile of ``n_null`` parametric-bootstrap null records; ``seed`` seeds the nulls);
+    ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC).
     """
-    if record.y is None:
-        raise UserInputError("diagnose needs an output column")
+    if rule not in SELECTION_RULES:
+        raise UserInputError(f"rule must be one of {SELECTION_RULES}, got {rule!r}")
+    if not 0.0 < fpr < 0.5:
+        raise UserInputError(f"fpr must be in (0, 0.5), got {fpr!r}")
+    if n_null < 2:
+        raise UserInputError(f"n_null must be >= 2, got {n_null!r}")
+    check_record(record)
     t_start = time.time()
     base0, base_rule = choose_base(record)
     rate_free = is_rate_free(record)
     split = make_split(record, holdout_residue=holdout_residue)
-    names = (
-        applicable_effects(base0, split, rate_free) if effects is None else [n for n in effects if n != NONLOCAL_MEMORY["name"]]
-    )
+    warnings = []
+    if effects is None:
+        names = applicable_effects(base0, split, rate_free)
+    else:
+        unknown = [n for n in effects if n not in EFFECTS and n != NONLOCAL_MEMORY["name"]]
+        if unknown:
+            raise UserInputError(f"unknown effect(s) {unknown}; catalogue: {list(EFFECTS) + [NONLOCAL_MEMORY['name']]}")
+        ok = set(applicable_effects(base0, split, rate_free))
+        names = [n for n in dict.fromkeys(effects) if n in ok]
+        for n in dict.fromkeys(effects):
+            if n not in ok and not (n == NONLOCAL_MEMORY["name"] and rate_free):
+                warnings.append(
+                    f"effect {n!r} does not apply to this record: {_not_applicable_reason(n, base0, rate_free, split)}"
+                )
     offer_preisach = rate_free and (effects is None or NONLOCAL_MEMORY["name"] in effects)
-    unknown = [n for n in names if n not in EFFECTS]
-    if unknown:
-        raise UserInputError(f"unknown effect(s) {unknown}; catalogue: {list(EFFECTS)}")
+    if effects is not None and not names and not offer_preisach:
+        raise UserInputError("; ".join(warnings) + "; nothing left to test")
+    for w in warnings:
+        _log(f"warning: {w}", verbose)
     _log(
         f"diagnose: {len(record)} samples, base {type(base0).__name__}, split {split.kind}, {len(names)} applicable effects",
         verbose,
@@ -789,16 +1209,33 @@ def diagnose(
                 }
             )
             entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
+            entry["legacy_accepted"] = entry["accepted"]
             fitted[name] = (m, te["rmse"], ic)
         candidates.append(entry)
     if offer_preisach:
         entry, pm = _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose)
+        entry["legacy_accepted"] = entry["accepted"]
         candidates.append(entry)
         fitted[entry["name"]] = pm
 
     accepted = sorted([c for c in candidates if c.get("accepted")], key=lambda c: c["heldout_rmse"])
-    selected, chosen = [], base
-    if accepted:
+    selected, chosen, ambiguous = [], base, []
+    cal = {**CALIBRATED_DEFAULTS, "fpr": fpr, "n_null": n_null, "n_folds": n_folds, "seed": seed}
+    if rule == "calibrated":
+        selected, chosen, ambiguous = _select_calibrated(
+            record,
+            split,
+            base,
+            base_te,
+            candidates,
+            fitted,
+            min_gain=min_gain,
+            max_effects=max_effects,
+            cal=cal,
+            holdout_residue=holdout_residue,
+            verbose=verbose,
+        )
+    elif accepted:
         first = accepted[0]["name"]
         selected, chosen = [first], fitted[first][0]
         cur_h, cur_ic = fitted[first][1], fitted[first][2]
@@ -819,6 +1256,7 @@ def diagnose(
             }
             if ok:
                 selected, chosen, cur_h, cur_ic = selected + [c["name"]], m2, te2["rmse"], ic2
+    _decisions(candidates, selected, ambiguous, rule)
     ext_tr, ext_te = _metrics_pair(chosen, split)
     _, ext_res_te = score(chosen, split.test)
     _, ext_res_tr = score(chosen, split.train)
@@ -880,11 +1318,15 @@ def diagnose(
             "heldout_e_r_after": ext_te["e_r_percent"],
         },
         "strongest_remaining_correlate": strongest,
+        "ambiguous": ambiguous,
+        "warnings": warnings,
+        "selection": _selection_doc(rule, cal, min_gain, candidates),
         "settings": {
             "max_candidates": max_candidates,
             "min_gain": min_gain,
             "max_effects": max_effects,
             "p_threshold": p_threshold,
+            "rule": rule,
         },
         "seconds": time.time() - t_start,
     }

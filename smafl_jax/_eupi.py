@@ -41,7 +41,7 @@ import numpy as np
 from . import _config  # noqa: F401
 from ._constraints import parameter, positive
 from ._io import register_model
-from ._operators import consistent_initial_state, play, play_weighted
+from ._operators import MODEL_METHODS, consistent_initial_state, play, play_weighted
 
 __all__ = ["EUPI", "threshold_grid", "tilt_grid"]
 
@@ -79,13 +79,20 @@ class EUPI(eqx.Module):
     u_ref: jnp.ndarray = parameter()
     u_span: jnp.ndarray = positive()
     init: str = eqx.field(static=True, default="descended")
+    # evaluation form of the operator bank: "scan" (sequential), "assoc" / "chunked" / "segmented" (exact
+    # parallel-in-time forms of smafl_jax.ops, equal to scan bit for bit) or "auto" (choose_model_method)
     method: str = eqx.field(static=True, default="scan")
+    # +1: output rises with the operator sum (displacement sensor); -1: falls (length sensor, sensor
+    # mounted the other way). The operator gains stay >= 0 either way, so the sign lives here.
+    orientation: int = eqx.field(static=True, default=1)
 
     def __check_init__(self):
+        if self.orientation not in (1, -1):
+            raise ValueError(f"EUPI orientation must be +1 or -1, got {self.orientation!r}")
         if self.init not in _INITS:
             raise ValueError(f"EUPI init must be one of {_INITS}, got {self.init!r}")
-        if self.method not in ("scan", "assoc"):
-            raise ValueError(f"EUPI method must be 'scan' or 'assoc', got {self.method!r}")
+        if self.method not in MODEL_METHODS:
+            raise ValueError(f"EUPI method must be one of {MODEL_METHODS}, got {self.method!r}")
         nv, ns = np.shape(self.v), np.shape(self.r_sym)
         if nv != ns:
             raise ValueError(f"v has shape {nv} but r_sym has shape {ns}; they must match")
@@ -106,6 +113,7 @@ class EUPI(eqx.Module):
         u_ref=None,
         init="descended",
         method="scan",
+        orientation=1,
     ):
         """Untrained EUPI with the documented grids for inputs in ``[u_min, u_max]``.
 
@@ -136,6 +144,7 @@ class EUPI(eqx.Module):
             u_span=jnp.asarray(span),
             init=init,
             method=method,
+            orientation=int(orientation),
         )
 
     # -- structure -------------------------------------------------------
@@ -175,7 +184,8 @@ class EUPI(eqx.Module):
         # poly_order=1 (no polynomial terms) gives an empty block, not a failing empty stack
         powers = jnp.stack([s ** (m + 2) for m in range(n_poly)], axis=-1) if n_poly else jnp.zeros((s.shape[0], 0))
         powers = powers.reshape(s.shape[0], n_poly)
-        return jnp.concatenate([s[:, None], ops, powers, jnp.ones_like(s)[:, None]], axis=1)
+        signed = float(self.orientation) * jnp.concatenate([s[:, None], ops], axis=1)
+        return jnp.concatenate([signed, powers, jnp.ones_like(s)[:, None]], axis=1)
 
     def linear_weights(self):
         """Gains in the column order of `features`."""
@@ -210,11 +220,11 @@ class EUPI(eqx.Module):
     def simulate(self, u, dt=None):
         """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
         del dt
-        if self.method == "assoc":
-            return self.features(u) @ self.linear_weights()
-        # Weighted sum inside the scan: writes T numbers instead of T x n (see benchmarks/README.md).
+        # Every method goes through smafl_jax.ops with the weights applied per step; for "scan" the
+        # weighted sum is inside the scan and writes T numbers instead of T x n (see benchmarks/README.md).
         s = self.normalise(u)
         r, a = self._bank()
-        ops = play_weighted(s, r, a, jnp.concatenate([self.v, jnp.ravel(self.w)]), y0=self._initial_state(s[0], r, a))
+        w = jnp.concatenate([self.v, jnp.ravel(self.w)])
+        ops = play_weighted(s, r, a, w, y0=self._initial_state(s[0], r, a), method=self.method)
         poly = sum((c * s ** (m + 2) for m, c in enumerate(self.poly)), jnp.zeros_like(s))
-        return self.gain * s + ops + poly + self.offset
+        return float(self.orientation) * (self.gain * s + ops) + poly + self.offset

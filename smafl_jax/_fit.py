@@ -150,7 +150,7 @@ def _replace_eupi(model, eupi):
 
 def _lag_unit(thermal, u, dt):
     """Joule lag of ``U^2`` with unit static gain (the column that multiplies ``k2/k1``)."""
-    return JouleThermal(k1=thermal.k1, k2=thermal.k1, init=thermal.init).simulate(u, dt)
+    return JouleThermal(k1=thermal.k1, k2=thermal.k1, init=thermal.init, u0=thermal.u0).simulate(u, dt)
 
 
 def _lag_features(m, u, dt):
@@ -233,6 +233,16 @@ def _bvls(A, b, nonneg):
     import scipy.linalg
     from scipy.optimize import lsq_linear
 
+    # Operators the training samples never moved (threshold above the trained input range) give
+    # constant columns, collinear with the offset: BVLS would hand them arbitrary gains that bite the
+    # first time a later input exceeds the trained range. They get gain 0 instead.
+    dead = np.asarray(nonneg, bool) & (np.ptp(A, axis=0) <= 1e-9 * max(float(np.max(np.abs(A))), 1e-300))
+    if np.any(dead):
+        keep = ~dead
+        x_keep, loss = _bvls(A[:, keep], b, np.asarray(nonneg, bool)[keep]) if np.any(keep) else (np.zeros(0), 0.5 * float(b @ b))
+        x = np.zeros(A.shape[1])
+        x[keep] = x_keep
+        return x, loss
     lb = np.where(nonneg, 0.0, -np.inf)
     # column scaling keeps BVLS well conditioned when operator columns are tiny
     scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-12)

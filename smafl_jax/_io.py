@@ -23,8 +23,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
 from ._errors import UserInputError
@@ -42,6 +40,8 @@ __all__ = [
     "atomic_savefig",
     "atomic_write_csv",
     "prepare_out_dir",
+    "check_writable_file",
+    "remove_created_dirs_if_empty",
     "to_jsonable",
     "read_json_file",
 ]
@@ -57,22 +57,38 @@ def register_model(cls):
     return cls
 
 
+def _is_jax_array(x):
+    jax = sys.modules.get("jax")  # no JAX array can exist before JAX is imported; keeps this module light
+    return jax is not None and isinstance(x, jax.Array)
+
+
 def to_jsonable(x):
     """Arrays -> nested lists, numpy scalars -> Python, NaN/inf -> None (strict JSON)."""
     if isinstance(x, dict):
         return {str(k): to_jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [to_jsonable(v) for v in x]
-    if isinstance(x, (jnp.ndarray, np.ndarray, np.generic)):
+    if isinstance(x, (np.ndarray, np.generic)) or _is_jax_array(x):
         return to_jsonable(np.asarray(x).tolist())
     if isinstance(x, float) and not math.isfinite(x):
         return None
     return x
 
 
+def _registered(name):
+    """The model class registered as ``name``; imports the package's model modules first if needed."""
+    if name not in _REGISTRY:
+        from . import _load_all  # the package imports its modules lazily; registration happens on import
+
+        _load_all()
+    return _REGISTRY.get(name)
+
+
 def model_to_dict(model):
     """Named-field dict of a registered model (recursive)."""
-    if type(model).__name__ not in _REGISTRY:
+    import equinox as eqx
+
+    if _registered(type(model).__name__) is None:
         raise UserInputError(f"model type {type(model).__name__} is not registered for saving")
     out = {"type": type(model).__name__}
     for f in dataclasses.fields(model):
@@ -86,12 +102,30 @@ def model_to_dict(model):
     return out
 
 
+#: Positive fields that must be strictly > 0 (rates, tilts, spans and time constants divide or scale by
+#: them); other positive fields (gains) may be exactly 0, which a non-negative least-squares fit produces.
+_NONZERO_FIELDS = frozenset({"k1", "k2", "alpha", "u_span", "tau"})
+
+
+def _check_positive_field(f, arr, where):
+    """A field declared `positive()` must hold no negative value (and no zero where zero is undefined)."""
+    if f.metadata.get("constraint") != "positive":
+        return
+    bad = arr < 0 if f.name not in _NONZERO_FIELDS else arr <= 0
+    if np.any(bad):
+        value = float(np.ravel(arr)[np.flatnonzero(np.ravel(bad))[0]])
+        need = "> 0" if f.name in _NONZERO_FIELDS else ">= 0"
+        raise UserInputError(f"{where}: must be {need}, got {value:g}")
+
+
 def model_from_dict(d, *, where="model"):
     """Inverse of `model_to_dict`; errors name the offending entry."""
+    import jax.numpy as jnp
+
     if not isinstance(d, dict) or "type" not in d:
         raise UserInputError(f"{where}: expected an object with a 'type' entry")
     name = d["type"]
-    cls = _REGISTRY.get(name)
+    cls = _registered(name)
     if cls is None:
         raise UserInputError(f"{where}: unknown model type {name!r}; known: {sorted(_REGISTRY)}")
     kwargs = {}
@@ -115,6 +149,7 @@ def model_from_dict(d, *, where="model"):
             arr = np.asarray(val, dtype=np.float64)
             if not np.all(np.isfinite(arr)):
                 raise UserInputError(f"{where}.{key}: non-finite value in saved parameters")
+            _check_positive_field(f, arr, f"{where}.{key}")
             kwargs[key] = jnp.asarray(arr)
     try:
         return cls(**kwargs)
@@ -165,10 +200,62 @@ def _umask():
     return mask
 
 
+def _os_message(exc: OSError) -> str:
+    """``strerror`` of an OSError without its errno prefix (the path is named by the caller)."""
+    return exc.strerror or str(exc)
+
+
+#: Folders `prepare_out_dir` created in this process, so that a failed run can remove them when empty.
+_CREATED_DIRS: list[Path] = []
+
+
+def _mkdir(folder: Path, what="output folder"):
+    """``mkdir -p`` that records the folders it created and turns OSError into a UserInputError naming the path."""
+    folder = Path(folder)
+    missing = []
+    p = folder
+    while not p.exists() and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    if p.exists() and not p.is_dir():
+        raise UserInputError(f"cannot create {what} {folder}: {p} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"cannot create {what} {folder}: {_os_message(exc)}") from None
+    created = list(reversed(missing))
+    _CREATED_DIRS.extend(created)
+    return created
+
+
+def remove_created_dirs_if_empty():
+    """Remove the folders this process created that are still empty (after a failed run); innermost first."""
+    removed = []
+    while _CREATED_DIRS:
+        d = _CREATED_DIRS.pop()
+        try:
+            d.rmdir()  # only succeeds when empty
+            removed.append(d)
+        except OSError:
+            pass
+    return removed
+
+
 def atomic_write_bytes(path, data: bytes):
+    """Write ``data`` to ``path`` through a temporary file in the same folder and `os.replace`.
+
+    Failures (read-only or special file systems, a folder where a file is
+    expected, a full disk) raise `UserInputError` naming ``path``.
+    """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    if path.is_dir():
+        raise UserInputError(f"cannot write {path}: it is a folder, expected a file name")
+    if not path.parent.is_dir():
+        _mkdir(path.parent, "folder")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise UserInputError(f"cannot write {path}: {_os_message(exc)}") from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -176,8 +263,12 @@ def atomic_write_bytes(path, data: bytes):
             os.fsync(f.fileno())
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give results normal permissions
         os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise UserInputError(f"cannot write {path}: {_os_message(exc)}") from None
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
 
@@ -212,14 +303,66 @@ def atomic_write_csv(path, columns: dict, *, fmt="%.10g"):
     atomic_write_text(path, buf.getvalue())
 
 
+def check_writable_file(path, what="output file"):
+    """Fail early (before any work) when ``path`` cannot be written: a folder, or a folder that is not writable."""
+    path = Path(path)
+    if path.is_dir():
+        raise UserInputError(f"{what} {path} is a folder; give a file name")
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UserInputError(f"cannot write {what} {path}: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise UserInputError(f"cannot write {what} {path}: {parent} is not writable")
+    return path
+
+
 def prepare_out_dir(out, *, announce=True, stream=None):
-    """Create the output folder; say so when it already holds results that will be replaced."""
+    """Create the output folder; say so when it already holds results that will be replaced.
+
+    Checks that the folder can be written to (a probe file is created and removed),
+    so a read-only or special file system fails here, before any work is done,
+    with a `UserInputError` naming the folder.  Folders created here are
+    remembered: `remove_created_dirs_if_empty` removes them after a failed run.
+    """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserInputError(f"{out}: exists and is not a folder")
-    existing = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.exists() else []
+    try:
+        existing = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.exists() else []
+    except OSError as exc:
+        raise UserInputError(f"cannot read output folder {out}: {_os_message(exc)}") from None
+    created = _mkdir(out)
+    try:
+        fd, probe = tempfile.mkstemp(dir=out, prefix=".smafl-write-probe.")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        for d in reversed(created):
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        raise UserInputError(f"cannot write to output folder {out}: {_os_message(exc)}") from None
     if existing and announce:
         shown = ", ".join(existing[:6]) + (" ..." if len(existing) > 6 else "")
         print(f"note: {out} already holds results ({shown}); files of the same name will be replaced", file=stream or sys.stderr)
-    out.mkdir(parents=True, exist_ok=True)
     return out
+
+
+def check_record_magnitude(record):
+    """`UserInputError` when a record's input or output is so large that squared errors overflow float64.
+
+    Least squares, RMSE and the likelihoods all sum squares; with values beyond
+    ~1e150 those are infinite and every fit or chain would be meaningless.
+    """
+    n = max(len(record.u), 1)
+    for what, name, x in (("input", record.input_name, record.u), ("output", record.output_name, record.y)):
+        if x is None:
+            continue
+        x = np.asarray(x, dtype=np.float64)
+        peak = float(np.max(np.abs(x))) if x.size else 0.0
+        if not math.isfinite(peak) or peak * peak * n > sys.float_info.max / 16:  # 16: room for residuals of ~4x the data
+            raise UserInputError(
+                f"{record.path or 'record'}, column '{name}': {what} values up to {peak:.3g} are too large for float64 "
+                "least squares (their squares overflow); rescale the column to other units"
+            )

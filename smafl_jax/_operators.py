@@ -1,4 +1,4 @@
-"""Play operators (eq. 1 of Xiang et al. 2017) as scan recurrences.
+"""Play operators (eq. 1 of Xiang et al. 2017) for the models, and the models' ``method="auto"`` rule.
 
 Convention used throughout the toolkit.  For a bank of ``n`` operators with
 thresholds ``r`` (>= 0) and tilts ``alpha`` (> 0) driven by one input signal
@@ -12,11 +12,13 @@ state *before* the first sample, ``F_i(-1)``, is the explicit initial state
 gives the alternative choice "the operator sits at the value the first input
 implies when approached from rest".
 
-Each step is a clamp ``y -> max(lo, min(hi, y))``.  Clamps are closed under
-composition, ``(lo2, hi2) o (lo1, hi1) = (max(lo2, min(lo1, hi2)), min(hi1, hi2))``,
-which is associative, so the whole record can also be evaluated with
-`jax.lax.associative_scan` in O(log T) depth (useful on GPUs and long records).
-Both paths use only max/min, so they agree bit for bit.
+Each step is a clamp ``y -> max(lo, min(hi, y))``; clamps compose
+associatively with max/min only, so every evaluation form of `smafl_jax.ops`
+(``scan``, ``assoc``, ``chunked``, ``segmented``) gives the same numbers bit
+for bit.  This module is the models' thin front end to those kernels: it keeps
+the toolkit's historical signatures (scalar ``r`` allowed, ``play_weighted``)
+and resolves ``method="auto"`` with `choose_model_method`, the rule measured
+on whole-model forward passes (benchmarks/bench_parallel_time.py).
 """
 
 from __future__ import annotations
@@ -24,9 +26,50 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from . import _config  # noqa: F401  (x64)
+from . import _config, ops  # noqa: F401  (_config: x64)
 
-__all__ = ["play_step", "play", "play_scan", "play_assoc", "play_weighted", "consistent_initial_state"]
+__all__ = [
+    "MODEL_METHODS",
+    "choose_model_method",
+    "resolve_method",
+    "play_step",
+    "play",
+    "play_scan",
+    "play_assoc",
+    "play_weighted",
+    "consistent_initial_state",
+]
+
+MODEL_METHODS = ("auto", *ops.METHODS)
+
+_ACCELERATORS = ("gpu", "cuda", "rocm", "tpu")
+
+
+def choose_model_method(T: int, n: int, backend: str | None = None) -> str:
+    """Evaluation form for a model forward pass of ``T`` samples and ``n`` operators (or state entries).
+
+    CPU (measured, benchmarks/bench_parallel_time.py on 2 shared cores): the sequential
+    ``scan`` was the fastest form to run for every record length and bank size tried, and
+    the cheapest to compile, so CPU always gets ``scan``.  Accelerators (NOT measured in this
+    repository; from the H100 figures of issue 15: ~12 us per scan step, ``assoc`` 8.8 ms at
+    T = 1e6, ``assoc`` compile 3 min at T = 1e7): ``scan`` for tiny records, ``assoc`` up to
+    2^20 samples, ``chunked`` (compile time independent of T) beyond.
+    """
+    b = jax.default_backend() if backend is None else str(backend).lower()
+    if b in _ACCELERATORS:
+        if T <= 64:
+            return "scan"
+        return "assoc" if T <= 2**20 else "chunked"
+    return "scan"
+
+
+def resolve_method(method: str, T: int, n: int, where: str = "method") -> str:
+    """``method`` itself, or the `choose_model_method` choice for ``"auto"``; ValueError names the options."""
+    if method == "auto":
+        return choose_model_method(T, n)
+    if method not in ops.METHODS:
+        raise ValueError(f"{where} must be one of {MODEL_METHODS}, got {method!r}")
+    return method
 
 
 def _bounds(u, r, alpha):
@@ -52,61 +95,47 @@ def _prepare(u, r, alpha, y0):
     return u, r, alpha, y0
 
 
+def play(u, r, alpha=1.0, y0=None, method="scan"):
+    """Outputs ``(T, n)`` of a bank of play operators.
+
+    ``method``: ``"scan"`` (sequential), ``"assoc"`` / ``"chunked"`` / ``"segmented"``
+    (exact parallel-in-time forms, `smafl_jax.ops`) or ``"auto"`` (`choose_model_method`).
+    """
+    u, r, alpha, y0 = _prepare(u, r, alpha, y0)
+    method = resolve_method(method, u.shape[0], r.shape[0])
+    if r.shape[0] == 0:  # a model without operators (e.g. EUPI with n_sym = n_asym = 0); the kernels need n >= 1
+        return jnp.zeros((u.shape[0], 0))
+    return ops.play(u, r, alpha, y0, method=method)
+
+
 def play_scan(u, r, alpha=1.0, y0=None):
     """Outputs ``(T, n)`` of ``n`` play operators via `jax.lax.scan`."""
-    u, r, alpha, y0 = _prepare(u, r, alpha, y0)
-
-    def step(carry, uk):
-        return play_step(carry, uk, r, alpha)
-
-    _, ys = jax.lax.scan(step, y0, u)
-    return ys
+    return play(u, r, alpha, y0, method="scan")
 
 
-def play_weighted(u, r, alpha, weights, y0=None):
-    """``play_scan(u, r, alpha, y0) @ weights`` without storing the ``(T, n)`` outputs.
+def play_assoc(u, r, alpha=1.0, y0=None):
+    """Same as `play_scan`, evaluated in parallel with `jax.lax.associative_scan`."""
+    return play(u, r, alpha, y0, method="assoc")
 
-    The weighted sum is taken inside the scan step, so only ``T`` numbers are
-    written instead of ``T * n``: the forward pass of a Prandtl-Ishlinskii
-    model is then compute-bound rather than memory-bound (2-4x faster on CPU
-    for 50-200 operators, see benchmarks/).  Use `play_scan` when the
-    individual operator outputs are needed (e.g. the design matrix).
+
+def play_weighted(u, r, alpha, weights, y0=None, method="scan"):
+    """``play(u, r, alpha, y0) @ weights`` without storing the ``(T, n)`` outputs for ``method="scan"``.
+
+    With ``"scan"`` the weighted sum is taken inside the scan step, so only ``T``
+    numbers are written instead of ``T * n``: the forward pass of a Prandtl-Ishlinskii
+    model is then compute-bound rather than memory-bound (2-4x faster on CPU for
+    50-200 operators, see benchmarks/).  The parallel forms (``"assoc"``,
+    ``"chunked"``, ``"segmented"``, or ``"auto"``) apply the same weights to their states.
+    Use `play_scan` when the individual operator outputs are needed (e.g. the design matrix).
     """
     u, r, alpha, y0 = _prepare(u, r, alpha, y0)
     weights = jnp.asarray(weights, dtype=jnp.float64)
     if weights.shape != r.shape:
         raise ValueError(f"weights must have one entry per operator, shape {r.shape}, got {weights.shape}")
-
-    def step(carry, uk):
-        y, _ = play_step(carry, uk, r, alpha)
-        return y, y @ weights
-
-    _, out = jax.lax.scan(step, y0, u)
-    return out
-
-
-def _compose(first, second):
-    # `first` acts earlier in time; result is second o first.
-    lo1, hi1 = first
-    lo2, hi2 = second
-    return jnp.maximum(lo2, jnp.minimum(lo1, hi2)), jnp.minimum(hi1, hi2)
-
-
-def play_assoc(u, r, alpha=1.0, y0=None):
-    """Same as `play_scan`, evaluated in parallel with `jax.lax.associative_scan`."""
-    u, r, alpha, y0 = _prepare(u, r, alpha, y0)
-    lo, hi = _bounds(u[:, None], r[None, :], alpha[None, :])
-    los, his = jax.lax.associative_scan(_compose, (lo, hi), axis=0)
-    return jnp.maximum(los, jnp.minimum(his, y0[None, :]))
-
-
-def play(u, r, alpha=1.0, y0=None, method="scan"):
-    """Bank of play operators; ``method`` is ``"scan"`` (sequential) or ``"assoc"`` (parallel)."""
-    if method == "scan":
-        return play_scan(u, r, alpha, y0)
-    if method == "assoc":
-        return play_assoc(u, r, alpha, y0)
-    raise ValueError(f"method must be 'scan' or 'assoc', got {method!r}")
+    method = resolve_method(method, u.shape[0], r.shape[0])
+    if r.shape[0] == 0:
+        return jnp.zeros_like(u)
+    return ops.play(u, r, alpha, y0, weights=weights, method=method)
 
 
 def consistent_initial_state(u0, r, alpha=1.0):

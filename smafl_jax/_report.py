@@ -142,19 +142,38 @@ def _report_md(rec, res):
         "",
         "## Candidate effects (ranked by score-test evidence)",
         "",
-        "| effect | partial R2 | p | fitted | held-out RMSE | gain | dBIC | accepted | parameters |",
+        "| effect | partial R2 | p | fitted | held-out RMSE | gain | dBIC | decision | parameters |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+    num = lambda v, f: "n/a" if v is None or not np.isfinite(v) else format(v, f)  # no score test: n/a, not nan
     for c in res["candidates"]:
         ev = c["evidence"]
+        head = f"| {c['name']} | {num(ev['partial_r2'], '.3f')} | {num(ev['p_value'], '.2g')} |"
+        decision = c.get("decision", c.get("accepted", ""))
         if c.get("fitted"):
             par = ", ".join(f"{k}={v:.4g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in c["parameters"].items())
             L.append(
-                f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
-                f"{c['delta_bic']:.1f} | {c['accepted']} | {par} |"
+                f"{head} yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
+                f"{c['delta_bic']:.1f} | {decision} | {par} |"
             )
         else:
-            L.append(f"| {c['name']} | {ev['partial_r2']:.3f} | {ev['p_value']:.2g} | no | | | | | |")
+            L.append(f"{head} no | | | | {decision} | |")
+    sel = res.get("selection", {})
+    if sel.get("rule") == "calibrated":
+        L += ["", f"Selection rule: {sel['description']}; false-positive rate {sel['false_positive_rate']:g} ({sel['note']})."]
+        for c in res["candidates"]:
+            cal = c.get("calibration", {})
+            if "folds" in cal:
+                fg = ", ".join(f"{100 * f['gain']:+.1f} %" for f in cal["folds"])
+                nl = cal.get("null")
+                nt = (
+                    f"; null gains mean {100 * nl['mean']:.1f} %, max {100 * nl['max']:.1f} %, threshold {100 * nl['threshold']:.1f} %"
+                    if nl
+                    else ""
+                )
+                L.append(f"- {c['name']}: fold gains {fg}{nt}")
+    for w in res.get("warnings", []):
+        L += ["", f"**Warning:** {w}"]
     s = res.get("strongest_remaining_correlate")
     if s:
         L += [

@@ -9,12 +9,14 @@ the measured output range *of that subset*.
 from __future__ import annotations
 
 import platform
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 from ._cascade import Cascade
+from ._choose import auto_structure, screen_start
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._fit import SOLVERS, default_trainable, fit
@@ -27,7 +29,7 @@ from ._thermal import JouleThermal
 
 __all__ = ["MODELS", "build_model", "fit_record", "write_fit_outputs", "versions"]
 
-MODELS = ("eupi", "cascade", "joule")
+MODELS = ("auto", "eupi", "cascade", "joule")
 
 K2_NOTE = (
     "k2 is not identified by a cascade fit: the hysteresis sees sqrt(theta k1/k2) and theta is "
@@ -80,26 +82,58 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
 def fit_record(
     record,
     *,
-    model="eupi",
+    model="auto",
     split="auto",
     val_fraction=0.3,
     solver="lm",
     max_steps=300,
-    thresholds=False,
-    tilts=False,
+    thresholds=None,
+    tilts=None,
     grid=None,
+    orientation="auto",
+    thermal_start="auto",
     progress=False,
 ):
-    """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content."""
+    """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content.
+
+    ``model="auto"`` picks the structure from the input (`auto_structure`) and trains the play
+    thresholds and tilts too (``thresholds`` / ``tilts`` None = on for auto, off otherwise).  For
+    every EUPI-based structure the output orientation and, for a cascade, the thermal start state
+    are screened on the training samples (`screen_start`) before the joint refinement.
+    """
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
     if solver not in SOLVERS:
         raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
-    start = build_model(model, record, **(grid or {}))
+    notes = []
+    structure = model
+    if model == "auto":
+        structure, why = auto_structure(record)
+        notes.append(f"model auto -> {structure}: {why}")
+    thresholds = (model == "auto") if thresholds is None else bool(thresholds)
+    tilts = (model == "auto") if tilts is None else bool(tilts)
+    start = build_model(structure, record, **(grid or {}))
     train, val, split_info = split_masks(record, split, val_fraction=val_fraction)
-    spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
     t0 = time.perf_counter()
-    res = fit(start, record, solver=solver, trainable=spec, weights=[train.astype(float)], max_steps=max_steps, progress=progress)
+    screening, init, screen_info = None, "auto", {}
+    if structure in ("eupi", "cascade"):
+        if progress:
+            print("screening start candidates (output orientation, thermal start) on the training samples", file=sys.stderr)
+        start, screening, screen_info = screen_start(
+            start, record, [train.astype(float)], orientation=orientation, thermal_start=thermal_start, progress=progress
+        )
+        init = None  # the screened start is already profiled
+    spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
+    res = fit(
+        start,
+        record,
+        solver=solver,
+        trainable=spec,
+        init=init,
+        weights=[train.astype(float)],
+        max_steps=max_steps,
+        progress=progress,
+    )
     seconds = time.perf_counter() - t0
     yhat = np.asarray(simulate(res.model, record.u, record.dt))
     if not np.all(np.isfinite(yhat)):
@@ -108,10 +142,9 @@ def fit_record(
         "train": metrics(record.y[train], yhat[train]),
         "validation": metrics(record.y[val], yhat[val]) if val.any() else None,
     }
-    notes = []
-    if model == "cascade":
+    if structure == "cascade":
         notes.append(K2_NOTE)
-        prof = (res.info or {}).get("profile") or {}
+        prof = (res.info or {}).get("profile") or screen_info.get("profile") or {}
         if prof.get("at_grid_edge"):
             notes.append(
                 f"the best k1 ({prof.get('k1'):.4g} 1/s) lies at the edge of the candidate grid: the record does not "
@@ -137,6 +170,10 @@ def fit_record(
         "split": split_info,
         "settings": {
             "model": model,
+            "structure": structure,
+            "orientation": orientation,
+            "thermal_start": thermal_start,
+            "start_screening": screening,
             "split": split_info["kind"],
             "val_fraction": val_fraction,
             "solver": solver,
@@ -154,11 +191,14 @@ def fit_record(
             "converged": res.converged,
             "message": res.message,
             "seconds": seconds,
-            "profile_k1": ((res.info or {}).get("profile") or {}).get("k1"),
+            "profile_k1": ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1"),
         },
         "notes": notes,
         "versions": versions(),
     }
+    from ._multi_record import add_record_extras  # baselines, data checks, loading notes, training input range
+
+    add_record_extras(doc, record, train, val, yhat)
     return res.model, doc, (train, val, yhat)
 
 
@@ -228,6 +268,7 @@ def _report_md(doc, files):
         f"- data: `{d['path']}` (sha256 `{d['sha256']}`), input `{d['input_column']}`, output `{d['output_column']}`, "
         f"dt {d['sample_time_s']:g} s, {d['n_samples']} samples",
         f"- split: {doc['split']['rule']}",
+        *[f"- loading: {note}" for note in d.get("processing", [])],
         f"- solver: {sv['name']} ({sv['n_steps']} steps, {sv['seconds']:.1f} s): {sv['message']}",
         "",
         "| metric | train | validation |",
@@ -242,6 +283,11 @@ def _report_md(doc, files):
         ("n_samples", "samples"),
     ]:
         lines.append(f"| {label} | {_fmt(tr.get(key))} | {_fmt(va.get(key))} |")
+    from ._baselines import baselines_markdown
+    from ._multi_record import data_checks_markdown
+
+    lines += baselines_markdown(doc.get("baselines"), doc["metrics"]["validation"], doc["metrics"]["train"])
+    lines += data_checks_markdown(doc.get("data_checks"))
     lines += ["", "## Parameters", ""]
     if m["type"] in ("Cascade", "JouleLag"):
         th = m["thermal"]

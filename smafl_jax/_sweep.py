@@ -19,6 +19,7 @@ one CPU, several forced host devices, or several GPUs.
 from __future__ import annotations
 
 import functools
+import time
 from typing import NamedTuple
 
 import equinox as eqx
@@ -126,31 +127,55 @@ def _mesh():
     return Mesh(np.asarray(jax.devices()), ("batch",))
 
 
-def sweep(base: ClosedLoop, dt, grid: dict, *, mode="product", shard=True):
-    """Metrics (e_mean_mm, rmse_mm, max_abs_error_mm, saturated_fraction) for every grid configuration."""
+#: Closed-loop sample steps per compiled call (configurations x samples); bounds memory and sets
+#: how often progress is reported.  A sweep of any size compiles once: every chunk has the same shape.
+CHUNK_STEPS = 4_000_000
+
+
+def sweep(base: ClosedLoop, dt, grid: dict, *, mode="product", shard=True, chunk=None, progress=None):
+    """Metrics (e_mean_mm, rmse_mm, max_abs_error_mm, saturated_fraction) for every grid configuration.
+
+    The configurations run in chunks of ``chunk`` (default: about `CHUNK_STEPS`
+    sample steps per chunk, rounded to a multiple of the device count; the last
+    chunk is padded by repeating its last configuration).  ``progress(done,
+    total, elapsed_s)`` is called after each chunk.
+    """
     dt = _check_dt(dt)
     config, axes, shape, names, values = batch_configs(base, grid, mode)
     n = int(np.prod(shape))
     arrays, static = eqx.partition(config, eqx.is_array)
     ax_arrays = jax.tree.map(lambda a, _: a, axes, arrays, is_leaf=lambda x: x is None)
     n_dev = len(jax.devices()) if shard else 1
-    n_pad = -(-n // n_dev) * n_dev
-
-    def pad(x, ax):
-        if ax is None or n_pad == n:
-            return x
-        return jnp.concatenate([x, jnp.repeat(x[-1:], n_pad - n, axis=0)])
+    n_time = int(np.shape(base.reference)[-1])
+    size = int(chunk) if chunk is not None else max(1, CHUNK_STEPS // max(n_time, 1))
+    if size < 1:
+        raise ValueError(f"chunk must be >= 1, got {chunk}")
+    size = -(-min(size, n) // n_dev) * n_dev
 
     flat_x, tdef = jax.tree.flatten(arrays)
     flat_ax = tdef.flatten_up_to(ax_arrays)
-    flat_x = [pad(x, a) for x, a in zip(flat_x, flat_ax)]
+    batched = replicated = None
     if shard and n_dev > 1:
         mesh = _mesh()
         batched, replicated = NamedSharding(mesh, PartitionSpec("batch")), NamedSharding(mesh, PartitionSpec())
-        flat_x = [jax.device_put(x, batched if a == 0 else replicated) for x, a in zip(flat_x, flat_ax)]
-    arrays = jax.tree.unflatten(tdef, flat_x)
-    out = _run_partitioned(arrays, static, tuple(flat_ax), tdef, dt)
-    metrics = {k: np.asarray(v)[:n].reshape(shape) for k, v in out.items()}
+        flat_x = [x if a == 0 else jax.device_put(x, replicated) for x, a in zip(flat_x, flat_ax)]
+
+    def piece(x, lo, hi):
+        part = x[lo:hi]
+        if hi - lo < size:
+            part = jnp.concatenate([part, jnp.repeat(part[-1:], size - (hi - lo), axis=0)])
+        return part if batched is None else jax.device_put(part, batched)
+
+    parts = []
+    t0 = time.monotonic()
+    for lo in range(0, n, size):
+        hi = min(n, lo + size)
+        xs = [piece(x, lo, hi) if a == 0 else x for x, a in zip(flat_x, flat_ax)]
+        out = _run_partitioned(jax.tree.unflatten(tdef, xs), static, tuple(flat_ax), tdef, dt)
+        parts.append({k: np.asarray(v)[: hi - lo] for k, v in out.items()})
+        if progress is not None:
+            progress(hi, n, time.monotonic() - t0)
+    metrics = {k: np.concatenate([p[k] for p in parts]).reshape(shape) for k in parts[0]}
     return SweepResult(metrics, shape, names, values)
 
 

@@ -26,14 +26,17 @@ EUPI.  Initial state: ``"steady"`` (default: at rest with the first input,
 from __future__ import annotations
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 
 from . import _config  # noqa: F401
 from ._constraints import positive
 from ._io import register_model
+from ._operators import MODEL_METHODS, resolve_method
+from .ops import affine
 
 __all__ = ["JouleThermal", "PAPER_K1", "PAPER_K2", "thermal_step", "effective_voltage"]
+
+INITS = ("steady", "ambient", "given")
 
 PAPER_K1 = 0.04988
 PAPER_K2 = 0.04172
@@ -64,10 +67,20 @@ class JouleThermal(eqx.Module):
     k1: jnp.ndarray = positive(default_factory=lambda: jnp.asarray(PAPER_K1))
     k2: jnp.ndarray = positive(default_factory=lambda: jnp.asarray(PAPER_K2))
     init: str = eqx.field(static=True, default="steady")
+    # init="given": the record starts at the thermal state a constant voltage u0 would hold
+    # (u0 -> 0: cold, u0 = u[0]: at equilibrium); fitted, so warm / half-warm / cold starts are all reachable.
+    u0: jnp.ndarray | None = positive(default=None)
+    # evaluation form of the linear recurrence (smafl_jax.ops.affine): "scan", "assoc", "chunked",
+    # "segmented" (agree with scan to rounding, ~1e-15 relative) or "auto" (choose_model_method)
+    method: str = eqx.field(static=True, default="scan")
 
     def __check_init__(self):
-        if self.init not in ("steady", "ambient"):
-            raise ValueError(f"JouleThermal init must be 'steady' or 'ambient', got {self.init!r}")
+        if self.method not in MODEL_METHODS:
+            raise ValueError(f"JouleThermal method must be one of {MODEL_METHODS}, got {self.method!r}")
+        if self.init not in INITS:
+            raise ValueError(f"JouleThermal init must be one of {INITS}, got {self.init!r}")
+        if (self.init == "given") != (self.u0 is not None):
+            raise ValueError("JouleThermal needs u0 exactly when init='given' (the initial effective voltage, V)")
 
     @property
     def gain(self):
@@ -80,13 +93,18 @@ class JouleThermal(eqx.Module):
         dt = jnp.asarray(dt, dtype=jnp.float64)
         a = jnp.exp(-self.k1 * dt)
         g = self.gain
-        theta0 = g * u[0] ** 2 if self.init == "steady" else jnp.zeros_like(u[0])
+        theta0 = self.initial_state(u[0])
+        # theta(k) = a theta(k-1) + b(k): the thermal_step recurrence as an affine scan (same products per sample)
+        b = (1.0 - a) * g * u * u
+        return affine(a, b, theta0, method=resolve_method(self.method, u.shape[0], 1, "JouleThermal method"))
 
-        def step(theta, x):
-            return thermal_step(theta, x, a, g)
-
-        _, theta = jax.lax.scan(step, theta0, u)
-        return theta
+    def initial_state(self, u_first):
+        """``theta`` before the first sample, by the ``init`` rule."""
+        if self.init == "steady":
+            return self.gain * u_first**2
+        if self.init == "given":
+            return self.gain * self.u0**2 + 0.0 * u_first
+        return jnp.zeros_like(u_first)
 
     def effective_voltage(self, theta):
         return effective_voltage(theta, self.k1, self.k2)

@@ -1,46 +1,125 @@
 """Command-line interface: ``smafl <command> ...``.
 
 Each command lives in its own module here with ``add_parser(subparsers)``
-registering a parser whose ``func`` runs it.  User errors (`UserInputError`)
-are printed as one line without a traceback and exit with code 2.
+registering a parser whose ``func`` runs it.  Only the module of the command
+being run is imported, so ``smafl --help`` and ``smafl --version`` answer
+without importing JAX.
+
+Exit codes: 0 success; 2 a user error (bad input, an output path that cannot
+be written), printed as one line ``smafl CMD: error: ...`` without a
+traceback; 130 interrupted (Ctrl-C).  After an error or an interrupt, output
+folders this run created and left empty are removed.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
-from .._errors import UserInputError
+# Command -> one-line help, in the order `smafl --help` lists them.  The same text is given by each
+# module's add_parser (tests/test_reliability.py checks they agree); kept here so that the top-level
+# help does not import the command modules (and JAX).
+COMMANDS = {
+    "simulate": "run a saved model (model file or fit.json) on an input record",
+    "fit": "fit a model to a record: fit.json, report.md and figures",
+    "sample": "posterior uncertainty of a fitted model by MCMC (emcee), with diagnostics and plots",
+    "control": "closed-loop PID / composite PID (PID + I-I compensator) simulation",
+    "sweep": "heat map of closed-loop e_mean over two swept parameters",
+    "diagnose": "fit the base model, study its residuals, attribute and fit missing physical effects",
+    "paper": "reproduce the paper end to end on the bundled data and write one report",
+    "check": "check measured records for faults (offset jumps, spikes, flat runs, gaps, odd runs)",
+}
 
-# Command modules, in the order `smafl --help` lists them.
-COMMANDS = ["simulate", "fit", "sample", "control", "sweep", "diagnose", "paper", "check"]
+
+def _version():
+    from .. import __version__
+
+    return __version__
 
 
-def build_parser():
+def build_parser(command=None):
+    """The ``smafl`` parser; only ``command``'s module is imported (all of them when ``command`` is ``"*"``)."""
     parser = argparse.ArgumentParser(
         prog="smafl",
         description="System identification, uncertainty and control for hysteretic thermal artificial muscles.",
     )
+    parser.add_argument("--version", action="version", version=f"smafl {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMANDS:
-        importlib.import_module(f"{__name__}.{name}").add_parser(sub)
+    for name, help_text in COMMANDS.items():
+        if command in (name, "*"):
+            importlib.import_module(f"{__name__}.{name}").add_parser(sub)
+        else:
+            sub.add_parser(name, help=help_text)  # placeholder: the full parser is built when the command runs
     return parser
 
 
+def _command_of(argv):
+    """The sub-command named on the command line (the top-level parser has no options taking values)."""
+    for a in argv:
+        if not a.startswith("-"):
+            return a if a in COMMANDS else None
+    return None
+
+
+def _flush():
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+
+
+def _cleanup(reset=False):
+    """Remove the empty output folders this run created (``reset``: forget earlier runs' folders instead)."""
+    io = sys.modules.get(f"{__package__.rpartition('.')[0]}._io")  # not imported yet = nothing created
+    if io is None:
+        return
+    if reset:
+        io._CREATED_DIRS.clear()
+    else:
+        io.remove_created_dirs_if_empty()
+
+
+def _error_text(exc):
+    if isinstance(exc, OSError):
+        where = exc.filename if exc.filename is not None else ""
+        return f"{where}: {exc.strerror}" if where and exc.strerror else str(exc)
+    return str(exc)
+
+
 def main(argv=None):
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
+    """Run ``smafl`` with ``argv`` (default: the process arguments); returns the exit code.
+
+    When called as the program itself (``argv`` None), an interrupt ends the
+    process with `os._exit` right after the message: letting the interpreter
+    tear down while JAX's runtime threads are still busy can crash it (exit 139).
+    """
+    from .._errors import UserInputError
+
+    standalone = argv is None
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = _command_of(argv)
+    name = f"smafl {command}" if command else "smafl"
+    _cleanup(reset=True)
     try:
+        parser = build_parser(command)
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 2
         return int(args.func(args) or 0)
-    except UserInputError as exc:
-        print(f"smafl {args.command}: error: {exc}", file=sys.stderr)
+    except (UserInputError, OSError) as exc:
+        _cleanup()
+        print(f"{name}: error: {_error_text(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"smafl {args.command}: interrupted", file=sys.stderr)
+        _cleanup()
+        print(f"{name}: interrupted", file=sys.stderr)
+        if standalone:
+            _flush()
+            os._exit(130)
         return 130
 
 

@@ -10,10 +10,7 @@ Imports only the numpy-based data package, so it starts fast.
 
 from __future__ import annotations
 
-import json
-import os
 import sys
-import tempfile
 from collections import Counter, defaultdict
 from pathlib import Path
 
@@ -50,16 +47,9 @@ def _resample_arg(text):
 
 
 def _atomic_write_json(path, obj):
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    from smafl_jax._io import atomic_write_json  # numpy-only module: keeps `smafl check` fast
+
+    atomic_write_json(path, obj)
 
 
 def run(args):

@@ -51,33 +51,74 @@ def add_loop_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="noise seed")
 
 
-def _positive(name, value):
-    if not np.isfinite(value) or value <= 0:
-        raise UserInputError(f"--{name} must be > 0, got {value}")
+#: Lower limits of the loop options (also applied to swept values): strictly positive / non-negative.
+POSITIVE_OPTIONS = ("dt", "duration", "umax", "tf")
+NONNEGATIVE_OPTIONS = ("noise", "quantum", "K", "kp", "ki", "kd", "eval_start")
+
+#: Most samples one closed-loop run may have (~1 GB of trajectory arrays at float64).
+MAX_SAMPLES = 10_000_000
+
+
+def check_option(name, value):
+    """`UserInputError` unless ``value`` is finite and within the limit of loop option ``name``."""
+    flag = "--" + name.replace("_", "-")
+    if name in POSITIVE_OPTIONS and not (np.isfinite(value) and value > 0):
+        raise UserInputError(f"{flag} must be > 0, got {value}")
+    if name in NONNEGATIVE_OPTIONS and not (np.isfinite(value) and value >= 0):
+        raise UserInputError(f"{flag} must be >= 0, got {value}")
+
+
+def _check_samples(span_s, dt, what):
+    n = span_s / dt + 1
+    if not np.isfinite(n) or n > MAX_SAMPLES:
+        raise UserInputError(
+            f"{what} of {span_s:g} s at --dt {dt:g} s is {n:.3g} samples, more than the limit of {MAX_SAMPLES:.0e}: "
+            "shorten it or use a larger --dt"
+        )
+
+
+def _read_reference_csv(path):
+    """(time, values, column name) from a reference CSV with a header; errors name the file and line."""
+    import csv
+
+    try:
+        with open(path, newline="") as f:
+            rows = [r for r in csv.reader(f) if any(c.strip() for c in r)]
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise UserInputError(f"{path}: cannot read as CSV ({exc})") from None
+    if not rows:
+        raise UserInputError(f"{path}: the reference file is empty; need a header with 'time_s' and a reference column")
+    header = [h.strip().lstrip("\ufeff") for h in rows[0]]
+    if "time_s" not in header or len(header) < 2:
+        raise UserInputError(f"{path}: need a 'time_s' column and a reference column, found {header}")
+    col = next(h for h in header if h != "time_s")
+    it, ic = header.index("time_s"), header.index(col)
+    t, r = [], []
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            t.append(float(row[it]))
+            r.append(float(row[ic]))
+        except (ValueError, IndexError):
+            raise UserInputError(f"{path}, row {line}: expected numbers in 'time_s' and '{col}', got {row}") from None
+    return np.asarray(t), np.asarray(r), col
 
 
 def load_reference(spec, dt, duration):
     """Reference samples on the ``dt`` grid from 'sine', 'step' or a CSV file."""
     from .._control import sine_reference, step_reference
 
-    if spec == "sine":
-        return sine_reference(duration, dt)
-    if spec == "step":
-        return step_reference(duration, dt)
+    if spec in ("sine", "step"):
+        _check_samples(duration, dt, "--duration")
+        return sine_reference(duration, dt) if spec == "sine" else step_reference(duration, dt)
     path = Path(spec)
     if not path.exists():
         raise UserInputError(f"--reference {spec!r}: not 'sine' or 'step' and no such file")
-    try:
-        data = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64)
-    except ValueError as exc:
-        raise UserInputError(f"{path}: cannot read as CSV ({exc})") from None
-    names = data.dtype.names or ()
-    if "time_s" not in names or len(names) < 2:
-        raise UserInputError(f"{path}: need a 'time_s' column and a reference column, found {list(names)}")
-    col = next(n for n in names if n != "time_s")
-    t, r = np.atleast_1d(data["time_s"]), np.atleast_1d(data[col])
+    if path.is_dir():
+        raise UserInputError(f"--reference {spec!r}: is a folder, expected a CSV file")
+    t, r, col = _read_reference_csv(path)
     if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(r)) or np.any(np.diff(t) <= 0):
         raise UserInputError(f"{path}: time_s must be finite and increasing and '{col}' finite, with at least 2 rows")
+    _check_samples(t[-1] - t[0], dt, f"the reference in {path}")
     grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
     return np.interp(grid, t, r)
 
@@ -90,11 +131,8 @@ def build_loop(args):
     from .. import load_model_file
     from .._control import PID, ClosedLoop, IICompensator
 
-    for name in ("dt", "duration", "umax", "tf"):
-        _positive(name, getattr(args, name))
-    for name in ("noise", "quantum", "K", "kp", "ki", "kd", "eval_start"):
-        if not np.isfinite(getattr(args, name)) or getattr(args, name) < 0:
-            raise UserInputError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    for name in POSITIVE_OPTIONS + NONNEGATIVE_OPTIONS:
+        check_option(name, getattr(args, name))
     model, _ = load_model_file(args.model)
     plant = load_model_file(args.plant)[0] if args.plant else model
     ref = load_reference(args.reference, args.dt, args.duration)

@@ -23,6 +23,21 @@ def add_parser(sub):
         "--min-gain", type=float, default=0.05, help="relative held-out RMSE reduction an effect must bring (default 0.05)"
     )
     p.add_argument(
+        "--rule",
+        choices=("calibrated", "legacy"),
+        default="calibrated",
+        help="selection rule: calibrated (folds + parametric-bootstrap null records, default) or legacy (one split + BIC)",
+    )
+    p.add_argument("--fpr", type=float, default=0.01, help="false-positive rate of the calibrated rule (default 0.01)")
+    p.add_argument(
+        "--n-null",
+        type=int,
+        default=10,
+        help="null records per tested effect (calibrated rule; default 10, kept small for speed)",
+    )
+    p.add_argument("--n-folds", type=int, default=3, help="contiguous time blocks for the fold test (default 3)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the null records (default 0)")
+    p.add_argument(
         "--no-refit",
         action="store_true",
         help="write the split fits as extended_fit.json / base_fit.json instead of refitting "
@@ -43,9 +58,17 @@ def run(args):
         raise UserInputError(f"--max-candidates must be >= 1, got {args.max_candidates}")
     if not 0.0 <= args.min_gain < 1.0:
         raise UserInputError(f"--min-gain must be in [0, 1), got {args.min_gain}")
+    if not 0.0 < args.fpr < 0.5:
+        raise UserInputError(f"--fpr must be in (0, 0.5), got {args.fpr}")
+    if args.n_null < 2:
+        raise UserInputError(f"--n-null must be >= 2, got {args.n_null}")
+    if args.n_folds < 2:
+        raise UserInputError(f"--n-folds must be >= 2, got {args.n_folds}")
     rec = load_record(args.data, input=args.input, output=args.output)
+    from .._diagnose import check_record, diagnose
+
+    check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)
-    from .._diagnose import diagnose
 
     res, base, ext, split = diagnose(
         rec,
@@ -54,12 +77,21 @@ def run(args):
         min_gain=args.min_gain,
         refit=not args.no_refit,
         verbose=not args.quiet,
+        rule=args.rule,
+        fpr=args.fpr,
+        n_null=args.n_null,
+        n_folds=args.n_folds,
+        seed=args.seed,
     )
     write_diagnosis(out, rec, res, base, ext, split)
     warning = res["split"].get("coverage", {}).get("warning")
     if warning:
         print(f"warning: {warning}", file=sys.stderr)
+    for w in res.get("warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
     sel = ", ".join(res["selected"]) or "none"
+    if res.get("ambiguous"):
+        sel += f" (ambiguous with {', '.join(n for n in res['ambiguous'] if n not in res['selected'])})"
     print(
         f"selected: {sel}; held-out RMSE {res['base']['heldout_rmse']:.4g} -> {res['extended']['heldout_rmse']:.4g} "
         f"(e_r {res['base']['heldout']['e_r_percent']:.2f} % -> {res['extended']['heldout']['e_r_percent']:.2f} %); wrote {out}"

@@ -1,4 +1,4 @@
-"""``smafl fit DATA.csv [--model eupi|cascade|joule] --out DIR``: identify a model from one record.
+"""``smafl fit DATA.csv [--model auto|eupi|cascade|joule] --out DIR``: identify a model from one record.
 
 Writes ``fit.json`` (model, train/validation metrics, data hash, settings,
 versions), ``report.md`` and figures into DIR.
@@ -6,6 +6,7 @@ versions), ``report.md`` and figures into DIR.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -16,14 +17,28 @@ def add_parser(sub):
     from .._split import SPLITS
 
     p = sub.add_parser("fit", help="fit a model to a record: fit.json, report.md and figures")
-    p.add_argument("data", help="record CSV (time_s, input and output columns; optional branch column)")
+    p.add_argument(
+        "data",
+        nargs="+",
+        help="record CSV (time_s, input and output columns; optional branch column); several files, a folder (its *.csv) "
+        "or a glob fit ONE joint model (each record from its own initial state) with leave-one-record-out validation "
+        "(--split none skips it)",
+    )
+    p.add_argument(
+        "--resample",
+        default=None,
+        metavar="DT|auto",
+        help="put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); "
+        "every bridged gap is reported. Without it irregular sampling is an error",
+    )
     p.add_argument("--input", default=None, help="input column (default: sidecar, else a common name such as voltage_V)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, else e.g. displacement_mm)")
     p.add_argument(
         "--model",
         choices=MODELS,
-        default="eupi",
-        help="eupi (paper eq. 2), cascade (thermal + EUPI), joule (eq. 7 lag); default eupi",
+        default="auto",
+        help="auto (cascade for a drive voltage, else eupi; thresholds and tilts trained), eupi (paper eq. 2), "
+        "cascade (thermal + EUPI), joule (eq. 7 lag); default auto",
     )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
     p.add_argument(
@@ -35,8 +50,30 @@ def add_parser(sub):
     p.add_argument("--val-fraction", type=float, default=0.3, help="held-out fraction for the time split (default 0.3)")
     p.add_argument("--solver", choices=SOLVERS, default="lm", help="joint refinement solver (default lm)")
     p.add_argument("--max-steps", type=int, default=300, help="refinement steps (0 = initialiser only)")
-    p.add_argument("--thresholds", action="store_true", help="also train the play thresholds")
-    p.add_argument("--tilts", action="store_true", help="also train the unparallel tilts")
+    p.add_argument(
+        "--thresholds",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="train the play thresholds (default: on for --model auto, off otherwise)",
+    )
+    p.add_argument(
+        "--tilts",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="train the unparallel tilts (default: on for --model auto, off otherwise)",
+    )
+    p.add_argument(
+        "--orientation",
+        choices=("auto", "rises", "falls"),
+        default="auto",
+        help="does the output rise or fall when the actuator contracts (length sensors fall); default: screened",
+    )
+    p.add_argument(
+        "--thermal-start",
+        choices=("auto", "steady", "cold", "fitted"),
+        default="auto",
+        help="cascade thermal state at t=0: steady (at rest with the first input), cold, or fitted (auto: screened, then fitted)",
+    )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")
     p.add_argument("--n-asym", type=int, default=4, help="thresholds per tilt (default 4)")
@@ -47,9 +84,11 @@ def add_parser(sub):
 
 
 def run(args):
-    from .. import load_record, prepare_out_dir
+    from .. import prepare_out_dir
+    from .._data import parse_resample
     from .._errors import UserInputError
     from .._report_fit import fit_record, write_fit_outputs
+    from ..data import load_records
 
     if args.max_steps < 0:
         raise UserInputError(f"--max-steps must be >= 0, got {args.max_steps}")
@@ -58,10 +97,26 @@ def run(args):
             raise UserInputError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
     if args.poly_order < 1:
         raise UserInputError(f"--poly-order must be >= 1, got {args.poly_order}")
-    rec = load_record(args.data, input=args.input, output=args.output)
-    out = prepare_out_dir(args.out or f"fit_{Path(args.data).stem}")
+    records = load_records(args.data, args.input, args.output, resample=parse_resample(args.resample))
     grid = dict(n_sym=args.n_sym, n_alpha=args.n_alpha, n_asym=args.n_asym, poly_order=args.poly_order)
-    print(f"fitting {args.model} to {args.data} ({len(rec)} samples, {rec.input_name} -> {rec.output_name})", file=sys.stderr)
+    import numpy as np
+
+    from .._io import check_record_magnitude
+
+    for r in records:
+        check_record_magnitude(r)  # values whose squares overflow: refuse before any work (issue 16)
+        if r.y is not None and len(r.y) and float(np.ptp(r.y)) == 0.0:
+            raise UserInputError(
+                f"{r.path}, column '{r.output_name}': the output is constant ({float(r.y[0]):g}): there is nothing to "
+                "identify, and e_r (eq. 3, relative to the output range) is undefined"
+            )
+        for note in r.processing:
+            print(f"loading {r.name}: {note}", file=sys.stderr)
+    if len(records) > 1:
+        return _run_records(args, records, grid)
+    rec = records[0]
+    out = prepare_out_dir(args.out or f"fit_{Path(rec.path).stem}")
+    print(f"fitting {args.model} to {rec.path} ({len(rec)} samples, {rec.input_name} -> {rec.output_name})", file=sys.stderr)
     model, doc, masks = fit_record(
         rec,
         model=args.model,
@@ -71,9 +126,16 @@ def run(args):
         max_steps=args.max_steps,
         thresholds=args.thresholds,
         tilts=args.tilts,
+        orientation=args.orientation,
+        thermal_start=args.thermal_start,
         grid=grid,
         progress=True,
     )
+    import math
+
+    train_rmse = doc["metrics"]["train"].get("rmse")
+    if train_rmse is None or not math.isfinite(float(train_rmse)):  # never report a non-finite fit as a success
+        raise UserInputError(f"{rec.path}: the fit has a non-finite training RMSE; nothing written (check the data's scale)")
     write_fit_outputs(out, rec, doc, masks, figures=not args.no_figures)
     sv = doc["solver"]
     if not sv["converged"]:
@@ -83,5 +145,69 @@ def run(args):
     if va:
         line += f"; validation rmse {va['rmse']:.4g}, e_r {va['e_r_percent']:.3g} %"
     print(line)
+    _print_extras(doc)
+    print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
+    return 0
+
+
+def _print_extras(doc):
+    """Baseline verdicts and the data-check summary of a fit.json document."""
+    for sentence in (doc.get("baselines") or {}).get("verdict", []):
+        print(f"baselines: {sentence}")
+    dc = doc.get("data_checks") or {}
+    if dc.get("n_findings"):
+        counts = ", ".join(f"{n} {k}" for k, n in sorted(dc["counts"].items()))
+        print(f"data checks: {dc['n_findings']} finding(s) ({counts}); see report.md (nothing was changed)")
+
+
+def _run_records(args, records, grid):
+    """Several records: one joint model, leave-one-record-out validation, outputs like a one-record fit."""
+    from .. import prepare_out_dir
+    from .._multi_record import fit_records, write_records_outputs
+
+    out = prepare_out_dir(args.out or f"fit_{records[0].name}_and_{len(records) - 1}_more")
+    print(
+        f"fitting {args.model} jointly to {len(records)} records ({sum(len(r) for r in records)} samples, "
+        f"{records[0].input_name} -> {records[0].output_name})",
+        file=sys.stderr,
+    )
+    model, doc, details = fit_records(
+        records,
+        model=args.model,
+        split="none" if args.split == "none" else "auto",
+        solver=args.solver,
+        max_steps=args.max_steps,
+        thresholds=args.thresholds,
+        tilts=args.tilts,
+        orientation=args.orientation,
+        thermal_start=args.thermal_start,
+        grid=grid,
+        progress=True,
+    )
+    if args.split not in ("auto", "none"):
+        print(
+            f"note: --split {args.split} applies to one record; several records are validated leave-one-record-out",
+            file=sys.stderr,
+        )
+    write_records_outputs(out, records, doc, details, figures=not args.no_figures)
+    sv = doc["solver"]
+    if not sv["converged"]:
+        print(f"warning: {sv['message']}", file=sys.stderr)
+    tr = doc["metrics"]["train"]
+    print(f"joint fit on all {len(records)} records (in sample): rmse {tr['rmse']:.4g}, e_r {tr['e_r_percent']:.3g} %")
+    v = doc["validation"]
+    if v["folds"]:
+        for f in v["folds"]:
+            m = f["model"]
+            bl = ", ".join(f"{k} {b['rmse']:.4g}" for k, b in f["baselines"].items())
+            head = f"rmse {m['rmse']:.4g}, e_r {m['e_r_percent']:.3g} %" if m else "non-finite output"
+            print(f"  held out {f['record']}: {head} (baselines rmse: {bl})")
+        mm = v["mean"]["model"]
+        if mm:
+            print(
+                f"leave-one-record-out mean: rmse {mm['rmse']:.4g}, e_r {mm['e_r_percent']:.3g} % "
+                f"({mm['n_folds']} of {len(v['folds'])} folds)"
+            )
+    _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
     return 0

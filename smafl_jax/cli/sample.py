@@ -77,7 +77,16 @@ def run(args):
         raise UserInputError(f"--holdout-fraction must be in [0, 0.9), got {args.holdout_fraction}")
     if args.draws < 2:
         raise UserInputError(f"--draws must be >= 2, got {args.draws}")
+    if args.burn is not None and not 0 <= args.burn < args.steps:
+        raise UserInputError(f"--burn must be in [0, --steps) = [0, {args.steps}), got {args.burn}")
+    if args.walkers is not None and args.walkers < 2:
+        raise UserInputError(f"--walkers must be >= 2, got {args.walkers}")
+    if args.gain_scale is not None and not (np.isfinite(args.gain_scale) and args.gain_scale > 0):
+        raise UserInputError(f"--gain-scale must be > 0, got {args.gain_scale}")
+    if not (np.isfinite(args.nu) and args.nu > 0):
+        raise UserInputError(f"--nu must be > 0, got {args.nu}")
     model, doc = load_model_file(args.fit)
+    B.check_model_supported(model, where=args.fit)
     info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
     rec = load_record(
         args.data_csv, input=args.input or info.get("input_column"), output=args.output or info.get("output_column")
@@ -111,6 +120,7 @@ def run(args):
         linear=linear,
         gain_scale=args.gain_scale,
     )
+    n_walkers = B.resolve_walkers(post.ndim, args.walkers)  # checked before anything is written
 
     out = prepare_out_dir(args.out)
     chain_path = out / "chain.h5"
@@ -146,7 +156,7 @@ def run(args):
         file=sys.stderr,
     )
     result = B.run_sampler(
-        post, args.steps, n_walkers=args.walkers, path=chain_path, seed=args.seed, resume=resume, progress=not args.no_progress
+        post, args.steps, n_walkers=n_walkers, path=chain_path, seed=args.seed, resume=resume, progress=not args.no_progress
     )
 
     with warnings.catch_warnings():

@@ -1,4 +1,10 @@
-"""``smafl simulate PARAMS.json INPUT.csv --out OUT.csv``: run a saved model on an input record."""
+"""``smafl simulate PARAMS.json INPUT.csv --out OUT.csv [--resample DT|auto]``: run a saved model on an input record.
+
+Warns (stderr, and ``input_range_check`` in the ``--metrics`` JSON) when the
+input leaves the range the model was fitted on (``data.input_range`` of a
+fit.json): by how much and for how many samples.  A model file without that
+range is run with a note that the range could not be checked.
+"""
 
 from __future__ import annotations
 
@@ -23,19 +29,34 @@ def add_parser(sub):
         help="measured output column to score against (default: the fit's output column when the CSV has it); "
         "prints RMSE and e_r and copies the column into the output CSV",
     )
-    p.add_argument("--metrics", default=None, help="also write those metrics to this JSON file")
+    p.add_argument("--metrics", default=None, help="also write those metrics (and the input-range check) to this JSON file")
+    p.add_argument(
+        "--resample",
+        default=None,
+        metavar="DT|auto",
+        help="put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); "
+        "the output CSV is on that grid. Without it irregular sampling is an error",
+    )
     p.set_defaults(func=run)
     return p
 
 
 def run(args):
     from .. import load_model_file, load_record, simulate
+    from .._data import parse_resample
     from .._io import atomic_write_csv
 
     model, doc = load_model_file(args.params)
     data_info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
     in_col = args.input or data_info.get("input_column")
-    rec = load_record(args.input_csv, input=in_col, require_output=False, min_samples=2)
+    rec = load_record(args.input_csv, input=in_col, require_output=False, min_samples=2, resample=parse_resample(args.resample))
+    for note in rec.processing:
+        print(f"note: loading {rec.name}: {note}", file=sys.stderr)
+    range_check = input_range_check(rec.u, data_info.get("input_range"), rec.input_name)
+    if range_check.get("warning"):
+        print(f"warning: {range_check['warning']}", file=sys.stderr)
+    elif range_check.get("note"):
+        print(f"note: {range_check['note']}", file=sys.stderr)
     fit_dt = data_info.get("sample_time_s")
     if fit_dt and not np.isclose(fit_dt, rec.dt, rtol=0.02):
         print(
@@ -60,6 +81,8 @@ def run(args):
         ym = np.asarray(rec.extra[measured], dtype=np.float64)
         scored = {"measured_column": measured, **metrics(ym, y)}
         cols[measured] = ym
+    if args.metrics and scored is None:  # checked before anything is written
+        raise UserInputError("--metrics needs a measured output column in the CSV (see --measured)")
     out = Path(args.out)
     if out.exists():
         print(f"note: replacing existing {out}", file=sys.stderr)
@@ -68,12 +91,76 @@ def run(args):
     if scored is not None:
         print(
             f"against measured '{measured}': RMSE {scored['rmse']:.4g}, max |error| {scored['max_abs_error']:.4g}, "
-            f"e_r {scored['e_r_percent']:.2f} % (eq. 3)"
+            + (
+                f"e_r {scored['e_r_percent']:.2f} % (eq. 3)"
+                if np.isfinite(scored["e_r_percent"])
+                else "e_r undefined (eq. 3: the measured output is constant)"
+            )
         )
     if args.metrics:
         from .._io import atomic_write_json
 
         if scored is None:
             raise UserInputError("--metrics needs a measured output column in the CSV (see --measured)")
-        atomic_write_json(args.metrics, {"model": str(args.params), "data": str(args.input_csv), "n_samples": len(rec), **scored})
+        atomic_write_json(
+            args.metrics,
+            {
+                "model": str(args.params),
+                "data": str(args.input_csv),
+                "n_samples": len(rec),
+                **scored,
+                "input_range_check": range_check,
+                "processing": list(rec.processing),
+            },
+        )
     return 0
+
+
+def input_range_check(u, fitted_range, column: str = "input") -> dict:
+    """How far and how often ``u`` leaves ``fitted_range`` = [lo, hi] (the fit's training input range).
+
+    Returns a JSON-able dict: the range, samples below and above, the largest
+    excursions (in input units and in % of the fitted span) and a ``warning``
+    sentence when any sample is outside; ``note`` when the range is unknown.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    if not (isinstance(fitted_range, (list, tuple)) and len(fitted_range) == 2):
+        return {
+            "fitted_range": None,
+            "checked": False,
+            "note": "the model file carries no training input range (not a fit.json of this version): range not checked",
+        }
+    lo, hi = float(fitted_range[0]), float(fitted_range[1])
+    span = hi - lo
+    below, above = u < lo, u > hi
+    n_out = int(below.sum() + above.sum())
+    out = {
+        "fitted_range": [lo, hi],
+        "checked": True,
+        "input_range": [float(u.min()), float(u.max())],
+        "n_samples": int(u.size),
+        "n_below": int(below.sum()),
+        "n_above": int(above.sum()),
+        "fraction_outside": n_out / u.size,
+        "max_below": float(lo - u.min()) if below.any() else 0.0,
+        "max_above": float(u.max() - hi) if above.any() else 0.0,
+    }
+    if n_out:
+        parts = []
+        if above.any():
+            parts.append(
+                f"{out['n_above']} above the max by up to {out['max_above']:.4g}"
+                + (f" ({100 * out['max_above'] / span:.1f} % of the fitted span)" if span > 0 else "")
+                + f", first at sample {int(np.flatnonzero(above)[0])}"
+            )
+        if below.any():
+            parts.append(
+                f"{out['n_below']} below the min by up to {out['max_below']:.4g}"
+                + (f" ({100 * out['max_below'] / span:.1f} % of the fitted span)" if span > 0 else "")
+                + f", first at sample {int(np.flatnonzero(below)[0])}"
+            )
+        out["warning"] = (
+            f"input '{column}' leaves the range the model was fitted on [{lo:.6g}, {hi:.6g}]: {n_out} of {u.size} samples "
+            f"({100 * n_out / u.size:.1f} %) outside ({'; '.join(parts)}); the model extrapolates there"
+        )
+    return out

@@ -7,7 +7,12 @@ import sys
 import numpy as np
 
 from .._errors import UserInputError
-from .control import add_loop_arguments, build_loop
+from .control import add_loop_arguments, build_loop, check_option
+
+UNITS = {"kp": "V/mm", "ki": "V/(mm s)", "kd": "V s/mm", "tf": "s", "umax": "V", "K": "V/(mm s)", "noise": "mm", "k1": "1/s"}
+
+#: Most values on one sweep axis.
+MAX_AXIS = 100_000
 
 # CLI name -> path in the ClosedLoop PyTree
 PARAMS = {
@@ -39,7 +44,45 @@ def parse_axis(spec):
         raise UserInputError(f"sweep axis {spec!r}: cannot parse the values") from None
     if values.size < 1 or not np.all(np.isfinite(values)):
         raise UserInputError(f"sweep axis {spec!r}: need at least one finite value")
+    if values.size > MAX_AXIS:
+        raise UserInputError(f"sweep axis {spec!r}: {values.size} values, more than the limit of {MAX_AXIS}")
+    for v in values:  # the same limits as the single-run options (`smafl control --kp ...`)
+        if name == "k1":
+            if not v > 0:
+                raise UserInputError(f"sweep axis {spec!r}: k1 values must be > 0, got {v:g}")
+        else:
+            try:
+                check_option(name, float(v))
+            except UserInputError as exc:
+                raise UserInputError(f"sweep axis {spec!r}: {str(exc).replace('--' + name, name)}") from None
     return name, values
+
+
+def _index_axis(ax, which, values, label):
+    """Cells at index positions, ticks labelled with the values: any values (log-spaced, huge) plot."""
+    idx = np.unique(np.linspace(0, values.size - 1, min(values.size, 8)).round().astype(int))
+    getattr(ax, f"set_{which}ticks")(idx)
+    getattr(ax, f"set_{which}ticklabels")([f"{values[i]:.3g}" for i in idx])
+    getattr(ax, f"set_{which}label")(label)
+
+
+def _progress_printer(n, stream=sys.stderr, every_s=2.0):
+    """``progress(done, total, elapsed)`` callback printing at most every ``every_s`` seconds, with an estimate."""
+    last = [-every_s]
+
+    def progress(done, total, elapsed):
+        if done < total and elapsed - last[0] < every_s:
+            return
+        last[0] = elapsed
+        eta = elapsed / done * (total - done) if done else float("nan")
+        print(
+            f"  sweep: {done}/{total} configurations, {elapsed:.0f} s elapsed"
+            + (f", about {eta:.0f} s left" if done < total else ""),
+            file=stream,
+            flush=True,
+        )
+
+    return progress
 
 
 def add_parser(sub):
@@ -61,7 +104,7 @@ def run(args):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .._io import atomic_savefig, atomic_write_csv, atomic_write_json, prepare_out_dir
+    from .._io import atomic_write_bytes, atomic_write_csv, atomic_write_json, prepare_out_dir
     from .._sweep import sweep
 
     (xn, xv), (yn, yv) = parse_axis(args.x), parse_axis(args.y)
@@ -69,8 +112,8 @@ def run(args):
         raise UserInputError(f"--x and --y both sweep {xn!r}")
     if "K" in (xn, yn) and args.controller != "composite":
         raise UserInputError("sweeping K needs --controller composite")
-    if "k1" in (xn, yn) and np.any(np.concatenate([xv, yv]) <= 0):
-        raise UserInputError("k1 values must be > 0")
+    if args.top < 1:
+        raise UserInputError(f"--top must be >= 1, got {args.top}")
     loop, settings = build_loop(args)
     if "k1" in (xn, yn) and not hasattr(loop.plant, "thermal"):
         raise UserInputError("sweeping k1 needs a plant with a thermal part (a Cascade)")
@@ -78,26 +121,33 @@ def run(args):
     n = xv.size * yv.size
     print(f"sweeping {n} configurations x {settings['n_samples']} samples on {len(jax.devices())} device(s) ...", file=sys.stderr)
     try:
-        res = sweep(loop, args.dt, {PARAMS[xn]: xv, PARAMS[yn]: yv}, shard=not args.no_shard)
+        res = sweep(loop, args.dt, {PARAMS[xn]: xv, PARAMS[yn]: yv}, shard=not args.no_shard, progress=_progress_printer(n))
     except ValueError as exc:
         raise UserInputError(str(exc)) from None
     m = res.metrics
     X, Y = np.meshgrid(xv, yv, indexing="ij")
     cols = {xn: X.ravel(), yn: Y.ravel(), **{k: v.ravel() for k, v in m.items()}}
-    atomic_write_csv(out / "sweep.csv", cols)
     e = np.where(np.isfinite(m["e_mean_mm"]), m["e_mean_mm"], np.inf).ravel()
-    order = np.argsort(e)[: max(1, args.top)]
-    atomic_write_csv(out / "best.csv", {k: v[order] for k, v in cols.items()})
+    order = np.argsort(e)[: args.top]
+    # the figure is drawn first: nothing is written when it fails
     fig, ax = plt.subplots(figsize=(7, 5))
-    im = ax.pcolormesh(xv, yv, np.log10(np.maximum(m["e_mean_mm"], 1e-12)).T, shading="nearest", cmap="viridis")
-    ax.plot(cols[xn][order[0]], cols[yn][order[0]], "r*", ms=12, label="best")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.log10(np.maximum(m["e_mean_mm"], 1e-12)).T
+    im = ax.pcolormesh(np.arange(xv.size), np.arange(yv.size), z, shading="nearest", cmap="viridis")
+    ax.plot(*np.unravel_index(order[0], m["e_mean_mm"].shape), "r*", ms=12, label="best")
     fig.colorbar(im, ax=ax, label="log10 e_mean (mm)")
-    ax.set_xlabel(xn)
-    ax.set_ylabel(yn)
+    _index_axis(ax, "x", xv, f"{xn} ({UNITS[xn]})")
+    _index_axis(ax, "y", yv, f"{yn} ({UNITS[yn]})")
     ax.legend()
     ax.set_title(f"{args.controller}, reference {settings['reference']}")
-    atomic_savefig(fig, out / "heatmap.png")
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120, bbox_inches="tight")
     plt.close(fig)
+    atomic_write_csv(out / "sweep.csv", cols)
+    atomic_write_csv(out / "best.csv", {k: v[order] for k, v in cols.items()})
+    atomic_write_bytes(out / "heatmap.png", buf.getvalue())
     best = {k: float(v[order[0]]) for k, v in cols.items()}
     atomic_write_json(out / "metrics.json", {"best": best, "n_configurations": n, "axes": {xn: xv, yn: yv}, "settings": settings})
     print(f"{'rank':>4} {xn:>10} {yn:>10} {'e_mean_mm':>12} {'rmse_mm':>10} {'saturated':>9}")

@@ -1,0 +1,138 @@
+"""Automatic start for a fit: model structure, output orientation and thermal start state.
+
+A record as users make it rarely starts at rest: the actuator may be cold with
+the power on, warm with the power off, or anywhere between; the sensor may read
+length (falling on contraction) instead of displacement; the drive may be a
+voltage (thermal lag matters) or a temperature (no lag to model).  Each of
+these is a discrete choice the gradient fit cannot make by itself, so it is
+screened here with the cheap profiled initialiser (k1 profiled, gains by
+bounded least squares) on the training samples, and the best candidate is the
+start of the joint refinement.  Candidates compete on training loss only:
+within one structure they have the same number of free parameters, so the
+comparison is fair and needs no held-out data.
+
+For a cascade the chosen start is turned into ``JouleThermal(init="given")``
+with the initial effective voltage ``u0`` as a fitted parameter, so the
+refinement can settle on any start temperature between cold and equilibrium.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from . import _config  # noqa: F401
+from ._cascade import Cascade
+from ._errors import UserInputError
+from ._eupi import EUPI
+from ._fit import as_fit_data, fit
+from ._thermal import JouleThermal
+
+__all__ = ["auto_structure", "screen_start", "COLD_FRACTION"]
+
+#: Initial effective voltage of a "cold" start, as a fraction of the input maximum.  Not exactly 0: the
+#: refinement fits ``u0`` through a softplus, whose gradient vanishes at 0 (a start there could never warm up).
+COLD_FRACTION = 0.05
+
+_VOLTAGE_UNITS = ("v", "volt", "volts")
+_START_FRACTION = {"cold": COLD_FRACTION, "warm": 0.5, "hot": 0.9}
+
+
+def auto_structure(record):
+    """``("cascade" | "eupi", reason)``: the structure ``--model auto`` fits to this record.
+
+    A drive voltage heats the actuator through a thermal lag (the paper's cascade); any other input
+    (temperature, pressure, current already converted...) drives the hysteresis directly.
+    """
+    name = (record.input_name or "").lower()
+    unit = str(dict(getattr(record, "units", {}) or {}).get(record.input_name, "")).strip().lower()
+    voltage = "volt" in name or name.endswith("_v") or unit in _VOLTAGE_UNITS
+    if voltage and float(np.min(record.u)) >= 0:
+        return "cascade", f"input '{record.input_name}' is a drive voltage >= 0: Joule heating -> thermal lag -> EUPI"
+    if voltage:
+        return "eupi", f"input '{record.input_name}' is a voltage but goes below 0; Joule heating needs U >= 0, so static EUPI"
+    return "eupi", f"input '{record.input_name}' is not a drive voltage: the hysteresis sees it directly (static EUPI)"
+
+
+def _with_orientation(model, sign):
+    if isinstance(model, EUPI):
+        return _rebuild_eupi(model, sign)
+    return eqx.tree_at(lambda m: m.hysteresis, model, _rebuild_eupi(model.hysteresis, sign))
+
+
+def _rebuild_eupi(e, sign):
+    # orientation is a static field: tree_at cannot replace it, so build a copy
+    return EUPI(
+        gain=e.gain, v=e.v, w=e.w, poly=e.poly, offset=e.offset, r_sym=e.r_sym, r_asym=e.r_asym, alpha=e.alpha,
+        u_ref=e.u_ref, u_span=e.u_span, init=e.init, method=e.method, orientation=int(sign),
+    )  # fmt: skip
+
+
+def _with_thermal_start(model, init, u0=None):
+    th = model.thermal
+    new = JouleThermal(k1=th.k1, k2=th.k2, init=init, u0=None if u0 is None else jnp.asarray(float(u0)))
+    return eqx.tree_at(lambda m: m.thermal, model, new, is_leaf=lambda x: x is None)
+
+
+def screen_start(start, data, weights, *, orientation="auto", thermal_start="auto", k1_grid=24, progress=False):
+    """Best profiled start over orientation and thermal start candidates.
+
+    ``data``/``weights`` as for `fit` (the weights select the training samples).
+    ``orientation``: "auto", "rises" or "falls"; ``thermal_start``: "auto",
+    "steady", "cold" or "fitted" (auto = screen steady and cold, then fit ``u0``
+    from the better one).  Returns ``(model, table, info)``: the profiled start, one row per
+    candidate and the winner's initialiser info (k1 profile).
+    """
+    if orientation not in ("auto", "rises", "falls"):
+        raise UserInputError(f"orientation must be auto, rises or falls, got {orientation!r}")
+    if thermal_start not in ("auto", "steady", "cold", "fitted"):
+        raise UserInputError(f"thermal start must be auto, steady, cold or fitted, got {thermal_start!r}")
+    data = as_fit_data(data)
+    signs = {"auto": (1, -1), "rises": (1,), "falls": (-1,)}[orientation]
+    cascade = isinstance(start, Cascade)
+    u_hi = max(float(np.max(np.asarray(d[0]))) for d in data) if cascade else None
+    if cascade:
+        # warm candidates: a record may start hot with the power off (u[0] = 0 makes "steady" equal "cold")
+        scan = ("steady", "cold", "warm", "hot")
+        starts = {"auto": scan, "fitted": scan, "steady": ("steady",), "cold": ("cold",)}
+        starts = starts[thermal_start]
+    else:
+        starts = (None,)
+    say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: None)
+    table, best = [], None
+    for sign in signs:
+        for th in starts:
+            m = _with_orientation(start, sign)
+            if th == "steady":
+                m = _with_thermal_start(m, "steady")
+            elif th is not None:
+                m = _with_thermal_start(m, "given", _START_FRACTION[th] * u_hi)
+            t0 = time.perf_counter()
+            try:
+                res = fit(m, data, weights=weights, solver=None, k1_grid=k1_grid)
+            except UserInputError as exc:
+                table.append({"orientation": sign, "thermal_start": th, "loss": None, "error": str(exc)})
+                continue
+            row = {"orientation": sign, "thermal_start": th, "loss": float(res.loss), "seconds": time.perf_counter() - t0}
+            table.append(row)
+            say(
+                f"  start candidate: output {'rises' if sign > 0 else 'falls'}"
+                + (f", thermal start {th}" if th else "")
+                + f": profiled loss {res.loss:.6g}"
+            )
+            if best is None or res.loss < best[0]:
+                best = (res.loss, res.model, th, res.info)
+    if best is None:
+        raise UserInputError("no start candidate gave a finite model output; check the input units and range")
+    _, model, th, info = best
+    if cascade and thermal_start in ("auto", "fitted"):
+        # free initial effective voltage from the better start: the refinement moves it to the record's own start
+        u_first = float(np.asarray(data[0][0])[0])
+        u0 = max(u_first, COLD_FRACTION * u_hi) if th == "steady" else _START_FRACTION[th] * u_hi
+        if len(data) == 1:
+            model = _with_thermal_start(model, "given", u0)
+    return model, table, info

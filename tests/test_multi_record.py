@@ -1,0 +1,162 @@
+"""Several records in one fit (smafl_jax._multi_record, `smafl fit A B`), loading through data.load, --resample,
+baselines and data checks in fit reports, and the input-range warning of `smafl simulate`."""
+
+import json
+
+import numpy as np
+import pytest
+
+import smafl_jax as sj
+from smafl_jax.cli import main as cli_main
+from smafl_jax.cli.simulate import input_range_check
+
+# initialiser only (bounded least squares for the gains): the orchestration is under test, not the refinement
+FAST = dict(model="eupi", max_steps=0, grid=dict(n_sym=6, n_alpha=0, n_asym=0, poly_order=2))
+
+
+def play_loop(u, r):
+    """Plain-loop symmetric play operator (PAPER.md eq. 1 with alpha = 1), started as if the input came down from above."""
+    out = np.empty_like(u)
+    f = u[0] + r
+    for k, x in enumerate(u):
+        f = max(x - r, min(x + r, f))
+        out[k] = f
+    return out
+
+
+def plant(u):
+    """Hysteretic plant, independent of smafl_jax: a linear term plus two wide play operators."""
+    return 0.2 * u + 0.6 * play_loop(u, 0.8) + 0.3 * play_loop(u, 1.6)
+
+
+def make(seed, n=300, dt=0.1, noise=0.002):
+    rng = np.random.default_rng(seed)
+    t = dt * np.arange(n)
+    amp = np.interp(t, [0, t[-1]], rng.uniform(1.2, 2.4, 2))
+    u = 2.5 + amp * np.sin(2 * np.pi * t / rng.uniform(5, 9) + rng.uniform(0, 6))
+    return t, u, plant(u) + noise * rng.standard_normal(n)
+
+
+def records(n=3, offset0=0.0):
+    out = []
+    for i in range(n):
+        t, u, y = make(10 + i)
+        out.append(sj.Record.from_arrays(t, u, y + (offset0 if i == 0 else 0.0), name=f"r{i}"))
+    return out
+
+
+def write_csv(path, t, u, y, *, bom=False, delim=",", decimal="."):
+    lines = [delim.join(["time_s", "voltage_V", "displacement_mm"])]
+    for row in zip(t, u, y):
+        lines.append(delim.join(f"{x:.10g}".replace(".", decimal) for x in row))
+    data = "\n".join(lines) + "\n"
+    path.write_bytes((b"\xef\xbb\xbf" if bom else b"") + data.encode())
+    return path
+
+
+def test_fit_records_loro_holds_each_record_out():
+    # record 0 carries a whole-run offset: only a fold that never saw it misses it by the full offset
+    c = 1.2
+    recs = records(3, offset0=c)
+    model, doc, details = sj.fit_records(recs, **FAST)
+    folds = doc["validation"]["folds"]
+    assert [f["record"] for f in folds] == ["r0", "r1", "r2"] and doc["split"]["kind"] == "leave_one_record_out"
+    # fold 0 trained on clean records: its error on record 0 is about the offset; the joint fit saw record 0
+    assert folds[0]["model"]["rmse"] == pytest.approx(c, rel=0.2)
+    assert doc["per_record_train"]["r0"]["rmse"] < 0.8 * folds[0]["model"]["rmse"]
+    # the fold held out record 0 also for the baselines: they miss it by the offset too
+    assert folds[0]["baselines"]["static_poly"]["rmse"] > 0.8 * c
+    # the headline is the mean over folds
+    mean = doc["validation"]["mean"]["model"]
+    assert mean["rmse"] == pytest.approx(np.mean([f["model"]["rmse"] for f in folds]))
+    assert doc["metrics"]["validation"]["rmse"] == mean["rmse"] and mean["n_folds"] == 3
+    # the kept model is the joint fit: its simulation is what details holds
+    np.testing.assert_allclose(np.asarray(sj.simulate(model, recs[1].u, recs[1].dt)), details["yhat"][1], rtol=1e-12)
+    assert doc["data"]["input_range"] == [min(r.u.min() for r in recs), max(r.u.max() for r in recs)]
+    assert {f["kind"] for f in doc["data_checks"]["findings"]} >= {"level_mismatch"}
+
+
+def test_fit_records_beats_static_poly_on_hysteretic_records_and_options():
+    recs = records(2)
+    _, doc, _ = sj.fit_records(recs, **FAST)
+    for f in doc["validation"]["folds"]:
+        # a hysteresis model on hysteretic data predicts a new run far better than a static map
+        assert f["model"]["rmse"] < 0.5 * f["baselines"]["static_poly"]["rmse"]
+    assert any("beats baseline static_poly" in s for s in doc["baselines"]["verdict"])
+    _, doc2, details = sj.fit_records(recs, split="none", **FAST)
+    assert doc2["validation"]["folds"] == [] and doc2["metrics"]["validation"] is None and details["yhat_loro"] == [None, None]
+    with pytest.raises(sj.UserInputError, match="unknown option"):
+        sj.fit_records(recs, bogus=1)
+    with pytest.raises(sj.UserInputError, match="leave-one-record-out"):
+        sj.fit_records(recs, split="time")
+
+
+def test_load_record_reads_bom_semicolon_decimal_comma(tmp_path):
+    t, u, y = make(1)
+    p = write_csv(tmp_path / "bom.csv", t, u, y, bom=True, delim=";", decimal=",")
+    r = sj.load_record(p)
+    assert r.input_name == "voltage_V" and r.dt == pytest.approx(0.1)
+    np.testing.assert_allclose(r.y, y, rtol=1e-9)
+    assert any("byte-order mark" in note for note in r.processing)
+
+
+def test_cli_fit_several_files_folder_and_glob(tmp_path, capsys):
+    d = tmp_path / "runs"
+    d.mkdir()
+    for i in range(2):
+        t, u, y = make(20 + i)
+        write_csv(d / f"run{i}.csv", t, u, y, bom=(i == 0))
+    common = ["--model", "eupi", "--max-steps", "0", "--n-sym", "4", "--n-alpha", "1", "--n-asym", "1", "--no-figures"]
+    assert cli_main(["fit", str(d), "--out", str(tmp_path / "o1")] + common) == 0
+    doc = json.loads((tmp_path / "o1" / "fit.json").read_text())
+    assert doc["data"]["n_records"] == 2 and [f["record"] for f in doc["validation"]["folds"]] == ["run0", "run1"]
+    assert "byte-order mark" in doc["data"]["records"][0]["processing"][0]
+    report = (tmp_path / "o1" / "report.md").read_text()
+    assert "## Leave-one-record-out" in report and "## Baselines" in report and "## Data checks" in report
+    out = capsys.readouterr().out
+    assert "leave-one-record-out mean" in out and "held out run1" in out
+    assert cli_main(["fit", str(d / "run*.csv"), "--out", str(tmp_path / "o2"), "--split", "none"] + common) == 0
+    assert json.loads((tmp_path / "o2" / "fit.json").read_text())["validation"]["folds"] == []
+    # the simulate input-range check reads the joint model's training range
+    t, u, y = make(30)
+    u2 = u + 0.4 * np.ptp(u)
+    write_csv(tmp_path / "hot.csv", t, u2, y)
+    mfile = tmp_path / "m.json"
+    args = ["simulate", str(tmp_path / "o1" / "fit.json"), str(tmp_path / "hot.csv"), "--out", str(tmp_path / "s.csv")]
+    assert cli_main(args + ["--metrics", str(mfile)]) == 0
+    assert "leaves the range the model was fitted on" in capsys.readouterr().err
+    chk = json.loads(mfile.read_text())["input_range_check"]
+    assert chk["n_above"] == int(np.sum(u2 > doc["data"]["input_range"][1])) > 0 and chk["n_below"] == 0
+
+
+def test_cli_fit_one_record_resample_baselines_and_checks(tmp_path, capsys):
+    t, u, y = make(3, n=260)
+    keep = np.ones(t.size, bool)
+    keep[100:104] = False  # a logger gap: irregular stamps
+    y = y.copy()
+    y[200] += 3.0  # a spike for the data checks
+    p = write_csv(tmp_path / "gap.csv", t[keep], u[keep], y[keep])
+    common = ["--model", "eupi", "--max-steps", "0", "--n-sym", "4", "--n-alpha", "1", "--n-asym", "1", "--no-figures"]
+    assert cli_main(["fit", str(p), "--out", str(tmp_path / "a")] + common) == 2
+    assert "--resample" in capsys.readouterr().err
+    assert cli_main(["fit", str(p), "--out", str(tmp_path / "b"), "--resample", "auto"] + common) == 0
+    doc = json.loads((tmp_path / "b" / "fit.json").read_text())
+    assert "resampled" in doc["data"]["processing"][0] and doc["data"]["n_samples"] == 260
+    train = np.asarray(json.loads(json.dumps(doc["split"]))["validation_start_time_s"])  # time split
+    assert doc["data"]["input_range"][1] == pytest.approx(np.max(u[t < train]), rel=1e-9)
+    bl = doc["baselines"]["models"]
+    assert bl["static_poly"]["heldout"]["n_samples"] == doc["metrics"]["validation"]["n_samples"]
+    assert len(doc["baselines"]["verdict"]) == 2
+    kinds = {f["kind"] for f in doc["data_checks"]["findings"]}
+    assert "spike" in kinds and ({"gap", "irregular_sampling"} & kinds)
+    report = (tmp_path / "b" / "report.md").read_text()
+    assert "resampled" in report and "| static_poly |" in report and "spike" in report
+
+
+def test_input_range_check_counts():
+    u = np.array([0.0, 1.0, 2.0, 5.0, 6.0, -1.0])
+    c = input_range_check(u, [0.0, 4.0], "v")
+    assert (c["n_above"], c["n_below"], c["max_above"], c["max_below"]) == (2, 1, 2.0, 1.0)
+    assert "3 of 6 samples" in c["warning"] and "50.0 % of the fitted span" in c["warning"]
+    assert "warning" not in input_range_check(u, [-1.0, 6.0])
+    assert not input_range_check(u, None)["checked"]
