@@ -256,6 +256,8 @@ def _eupi_of(model):
 def _hysteresis_input(model, u, dt):
     if isinstance(model, EUPI):
         return u
+    if hasattr(model, "hysteresis_input"):
+        return model.hysteresis_input(u, dt)
     return model.thermal.effective_voltage(model.thermal.simulate(u, dt))
 
 

@@ -24,7 +24,9 @@ from ._eupi import EUPI
 from ._io import register_model
 from ._thermal import JouleThermal
 
-__all__ = ["Cascade"]
+__all__ = ["SEES", "Cascade"]
+
+SEES = ("voltage", "heat")
 
 
 @register_model
@@ -33,28 +35,50 @@ class Cascade(eqx.Module):
 
     thermal: JouleThermal
     hysteresis: EUPI
+    # What the hysteresis acts on: "voltage" = the effective voltage sqrt(theta k1/k2) (the paper's
+    # voltage-domain EUPI); "heat" = theta k1/k2 = u_eff^2 (V^2), i.e. the temperature rise, where the
+    # phase transformation of an SMA really happens. Play operators are not invariant under the square,
+    # so the two are different model classes; `smafl fit` screens both.
+    sees: str = eqx.field(static=True, default="voltage")
+
+    def __check_init__(self):
+        if self.sees not in SEES:
+            raise ValueError(f"Cascade sees must be one of {SEES}, got {self.sees!r}")
+
+    def drive_of(self, theta):
+        """Signal the hysteresis sees for thermal state ``theta``."""
+        u_eff = self.thermal.effective_voltage(theta)
+        return u_eff if self.sees == "voltage" else u_eff * u_eff
+
+    def hysteresis_input(self, u, dt):
+        return self.drive_of(self.thermal.simulate(u, dt))
 
     def states(self, u, dt):
-        """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``y`` (output)."""
+        """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``drive`` (hysteresis input), ``y``."""
         theta = self.thermal.simulate(u, dt)
-        u_eff = self.thermal.effective_voltage(theta)
-        return {"theta": theta, "u_eff": u_eff, "y": self.hysteresis.simulate(u_eff)}
+        drive = self.drive_of(theta)
+        return {"theta": theta, "u_eff": self.thermal.effective_voltage(theta), "drive": drive, "y": self.hysteresis.simulate(drive)}
 
     def simulate(self, u, dt):
         """Displacement for voltage record ``u`` sampled every ``dt`` seconds."""
-        theta = self.thermal.simulate(u, dt)
-        return self.hysteresis.simulate(self.thermal.effective_voltage(theta))
+        return self.hysteresis.simulate(self.hysteresis_input(u, dt))
 
     def with_method(self, method: str) -> Cascade:
         """Copy with both parts evaluated by ``method`` ("auto", "scan", "assoc", "chunked", "segmented")."""
-        return Cascade(
+        return dataclasses.replace(
+            self,
             thermal=dataclasses.replace(self.thermal, method=method),
             hysteresis=dataclasses.replace(self.hysteresis, method=method),
         )
 
     @classmethod
-    def from_range(cls, u_max, *, thermal=None, **eupi_kwargs):
+    def from_range(cls, u_max, *, thermal=None, sees="voltage", **eupi_kwargs):
         """Untrained cascade for drive voltages in ``[0, u_max]`` (paper defaults for the thermal part)."""
+        if sees not in SEES:
+            raise ValueError(f"sees must be one of {SEES}, got {sees!r}")
+        top = u_max if sees == "voltage" else u_max * u_max
         return cls(
-            thermal=thermal if thermal is not None else JouleThermal(), hysteresis=EUPI.from_range(0.0, u_max, **eupi_kwargs)
+            thermal=thermal if thermal is not None else JouleThermal(),
+            hysteresis=EUPI.from_range(0.0, top, **eupi_kwargs),
+            sees=sees,
         )

@@ -18,10 +18,10 @@ refinement can settle on any start temperature between cold and equilibrium.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 
-import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -30,7 +30,6 @@ from ._cascade import Cascade
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._fit import as_fit_data, fit
-from ._thermal import JouleThermal
 
 __all__ = ["auto_structure", "screen_start", "COLD_FRACTION"]
 
@@ -60,79 +59,96 @@ def auto_structure(record):
 
 def _with_orientation(model, sign):
     if isinstance(model, EUPI):
-        return _rebuild_eupi(model, sign)
-    return eqx.tree_at(lambda m: m.hysteresis, model, _rebuild_eupi(model.hysteresis, sign))
+        return dataclasses.replace(model, orientation=int(sign))
+    return dataclasses.replace(model, hysteresis=dataclasses.replace(model.hysteresis, orientation=int(sign)))
 
 
-def _rebuild_eupi(e, sign):
-    # orientation is a static field: tree_at cannot replace it, so build a copy
-    return EUPI(
-        gain=e.gain, v=e.v, w=e.w, poly=e.poly, offset=e.offset, r_sym=e.r_sym, r_asym=e.r_asym, alpha=e.alpha,
-        u_ref=e.u_ref, u_span=e.u_span, init=e.init, method=e.method, orientation=int(sign),
+def _with_sees(model, sees, u_hi):
+    """Cascade copy whose hysteresis acts on ``sees`` (same operator grid, range rescaled)."""
+    if model.sees == sees:
+        return model
+    e = model.hysteresis
+    n_alpha, n_asym = np.shape(e.w)
+    fresh = EUPI.from_range(
+        0.0, u_hi if sees == "voltage" else u_hi * u_hi, n_sym=np.shape(e.v)[0], n_alpha=n_alpha, n_asym=n_asym,
+        poly_order=np.shape(e.poly)[0] + 1, init=e.init, method=e.method, orientation=e.orientation,
     )  # fmt: skip
+    return dataclasses.replace(model, hysteresis=fresh, sees=sees)
 
 
 def _with_thermal_start(model, init, u0=None):
     th = model.thermal
-    new = JouleThermal(k1=th.k1, k2=th.k2, init=init, u0=None if u0 is None else jnp.asarray(float(u0)))
-    return eqx.tree_at(lambda m: m.thermal, model, new, is_leaf=lambda x: x is None)
+    new = dataclasses.replace(th, init=init, u0=None if u0 is None else jnp.asarray(float(u0)))
+    return dataclasses.replace(model, thermal=new)
 
 
-def screen_start(start, data, weights, *, orientation="auto", thermal_start="auto", k1_grid=24, progress=False):
-    """Best profiled start over orientation and thermal start candidates.
+def screen_start(start, data, weights, *, orientation="auto", thermal_start="auto", sees="auto", k1_grid=16, progress=False):
+    """Best profiled start over output orientation, hysteresis input and thermal start candidates.
 
-    ``data``/``weights`` as for `fit` (the weights select the training samples).
-    ``orientation``: "auto", "rises" or "falls"; ``thermal_start``: "auto",
-    "steady", "cold" or "fitted" (auto = screen steady and cold, then fit ``u0``
-    from the better one).  Returns ``(model, table, info)``: the profiled start, one row per
-    candidate and the winner's initialiser info (k1 profile).
+    ``data``/``weights`` as for `fit` (the weights select the training samples).  ``orientation``:
+    "auto", "rises" or "falls"; ``sees`` (cascades): "auto", "voltage" or "heat" (see `Cascade`);
+    ``thermal_start`` (cascades): "auto", "steady", "cold" or "fitted".  Stage 1 screens orientation x
+    sees with the steady and cold starts; stage 2 adds warm and hot starts for the best of stage 1
+    (a record may start hot with the power off, where "steady" equals "cold").  With "auto"/"fitted"
+    the winner's start becomes a fitted initial effective voltage ``u0`` (one record only).
+    Returns ``(model, table, info)``: the profiled start, one row per candidate and the winner's
+    initialiser info (k1 profile).
     """
     if orientation not in ("auto", "rises", "falls"):
         raise UserInputError(f"orientation must be auto, rises or falls, got {orientation!r}")
     if thermal_start not in ("auto", "steady", "cold", "fitted"):
         raise UserInputError(f"thermal start must be auto, steady, cold or fitted, got {thermal_start!r}")
+    if sees not in ("auto", "voltage", "heat"):
+        raise UserInputError(f"hysteresis input must be auto, voltage or heat, got {sees!r}")
     data = as_fit_data(data)
     signs = {"auto": (1, -1), "rises": (1,), "falls": (-1,)}[orientation]
     cascade = isinstance(start, Cascade)
     u_hi = max(float(np.max(np.asarray(d[0]))) for d in data) if cascade else None
     if cascade:
-        # warm candidates: a record may start hot with the power off (u[0] = 0 makes "steady" equal "cold")
-        scan = ("steady", "cold", "warm", "hot")
-        starts = {"auto": scan, "fitted": scan, "steady": ("steady",), "cold": ("cold",)}
-        starts = starts[thermal_start]
+        inputs = ("voltage", "heat") if sees == "auto" else (sees,)
+        first = {"auto": ("steady", "cold"), "fitted": ("steady", "cold"), "steady": ("steady",), "cold": ("cold",)}
+        first = first[thermal_start]
     else:
-        starts = (None,)
+        inputs, first = (None,), (None,)
     say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: None)
     table, best = [], None
+
+    def candidate(sign, inp, th):
+        nonlocal best
+        m = _with_orientation(start, sign)
+        if inp is not None:
+            m = _with_sees(m, inp, u_hi)
+        if th == "steady":
+            m = _with_thermal_start(m, "steady")
+        elif th is not None:
+            m = _with_thermal_start(m, "given", _START_FRACTION[th] * u_hi)
+        t0 = time.perf_counter()
+        row = {"orientation": sign, "sees": inp, "thermal_start": th}
+        try:
+            res = fit(m, data, weights=weights, solver=None, k1_grid=k1_grid)
+        except UserInputError as exc:
+            table.append({**row, "loss": None, "error": str(exc)})
+            return
+        table.append({**row, "loss": float(res.loss), "seconds": time.perf_counter() - t0})
+        desc = f"output {'rises' if sign > 0 else 'falls'}" + (f", hysteresis sees {inp}, thermal start {th}" if inp else "")
+        say(f"  start candidate: {desc}: profiled loss {res.loss:.6g}")
+        if best is None or res.loss < best[0]:
+            best = (res.loss, res.model, (sign, inp, th), res.info)
+
     for sign in signs:
-        for th in starts:
-            m = _with_orientation(start, sign)
-            if th == "steady":
-                m = _with_thermal_start(m, "steady")
-            elif th is not None:
-                m = _with_thermal_start(m, "given", _START_FRACTION[th] * u_hi)
-            t0 = time.perf_counter()
-            try:
-                res = fit(m, data, weights=weights, solver=None, k1_grid=k1_grid)
-            except UserInputError as exc:
-                table.append({"orientation": sign, "thermal_start": th, "loss": None, "error": str(exc)})
-                continue
-            row = {"orientation": sign, "thermal_start": th, "loss": float(res.loss), "seconds": time.perf_counter() - t0}
-            table.append(row)
-            say(
-                f"  start candidate: output {'rises' if sign > 0 else 'falls'}"
-                + (f", thermal start {th}" if th else "")
-                + f": profiled loss {res.loss:.6g}"
-            )
-            if best is None or res.loss < best[0]:
-                best = (res.loss, res.model, th, res.info)
+        for inp in inputs:
+            for th in first:
+                candidate(sign, inp, th)
     if best is None:
         raise UserInputError("no start candidate gave a finite model output; check the input units and range")
-    _, model, th, info = best
     if cascade and thermal_start in ("auto", "fitted"):
-        # free initial effective voltage from the better start: the refinement moves it to the record's own start
+        sign, inp, _ = best[2]
+        for th in ("warm", "hot"):
+            candidate(sign, inp, th)
+    _, model, (_, _, th), info = best
+    if cascade and thermal_start in ("auto", "fitted") and len(data) == 1:
+        # free initial effective voltage from the best start: the refinement moves it to the record's own start
         u_first = float(np.asarray(data[0][0])[0])
         u0 = max(u_first, COLD_FRACTION * u_hi) if th == "steady" else _START_FRACTION[th] * u_hi
-        if len(data) == 1:
-            model = _with_thermal_start(model, "given", u0)
+        model = _with_thermal_start(model, "given", u0)
     return model, table, info

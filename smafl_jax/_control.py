@@ -49,7 +49,7 @@ from . import _config  # noqa: F401
 from ._cascade import Cascade
 from ._eupi import EUPI
 from ._operators import consistent_initial_state, play_step
-from ._thermal import effective_voltage, thermal_step
+from ._thermal import thermal_step
 
 __all__ = [
     "PID",
@@ -180,7 +180,7 @@ def plant_step(model, state, u, dt):
     if thermal is not None:
         a = jnp.exp(-thermal.k1 * dt)
         theta, _ = thermal_step(theta, u, a, thermal.gain)
-        u_eff = effective_voltage(theta, thermal.k1, thermal.k2)
+        u_eff = model.drive_of(theta)
     else:
         u_eff = u
     s = hyst.normalise(u_eff)

@@ -841,16 +841,29 @@ def null_records(record, split, model, n_null, rng, max_order=20):
     return recs, info
 
 
+#: Nelder-Mead evaluations per nonlinear parameter when an effect is refitted on a null record (the real fit: 150).
+NULL_MAX_ITER_PER_PARAMETER = 30
+
+
 def _fit_on(name, start, split, record, *, new):
-    """Refit ``start`` on another split: warm start of every parameter (``new=False``), or ``start`` (a fitted model
-    without ``name``) plus effect ``name`` from its grid of starts (``new=True``, the procedure of the real fit)."""
+    """Refit on another split (folds, null records).
+
+    ``new=False``: the linear EUPI gains (and linear effect gains) are re-profiled by bounded least squares with
+    the nonlinear parameters (k1, effect parameters) kept at their fitted values: one solve, cheap.
+    ``new=True``: ``start`` (a fitted model without ``name``) plus effect ``name`` from its grid of starts and a
+    Nelder-Mead search capped at ``NULL_MAX_ITER_PER_PARAMETER`` evaluations per parameter (the real fit's
+    procedure, shortened for speed).  ``nonlocal_memory``: the Preisach fit with its inner CV.
+    """
     if name == NONLOCAL_MEMORY["name"]:
         u = np.asarray(record.u, float)
         return cv_fit_preisach(split.train, float(u.min()), float(u.max()))[0]
+    if isinstance(start, Preisach):
+        return start
     if new:
         have = list(start.effect_names) if isinstance(start, ExtendedModel) else []
-        return fit_extended(start, have + [name], split)[0]
-    return fit_extended(start, [], split)[0]
+        n_par = len(_NONLINEAR[name]) + len(have) + (1 if isinstance(start.base, Cascade) else 0)
+        return fit_extended(start, have + [name], split, max_iter=NULL_MAX_ITER_PER_PARAMETER * max(n_par, 1))[0]
+    return profile_gains(start, split.train)[0]
 
 
 def _held(model, split):
@@ -912,7 +925,7 @@ def calibration_gates(
     for j, fs in enumerate(splits):
         key = (id(current), j)
         if key not in fold_cache:
-            cm = _fit_on(None, current, fs, record, new=False) if not isinstance(current, Preisach) else current
+            cm = _fit_on(None, current, fs, record, new=False)
             fold_cache[key] = _held(cm, fs)
         b = fold_cache[key]
         c = _held(_fit_on(name, cand, fs, record, new=False), fs)
@@ -939,7 +952,7 @@ def calibration_gates(
     null_gains = []
     for r in recs:
         ns = make_split(r, holdout_residue=holdout_residue)
-        cm = _fit_on(None, current, ns, r, new=False) if not isinstance(current, Preisach) else current
+        cm = _fit_on(None, current, ns, r, new=False)
         nm = _fit_on(name, cm, ns, r, new=True)
         b, c = _held(cm, ns), _held(nm, ns)
         null_gains.append(1.0 - c["rmse"] / b["rmse"] if b["rmse"] > 0 else 0.0)
@@ -1028,9 +1041,40 @@ def _select_calibrated(record, split, base, base_te, candidates, fitted, *, min_
     return selected, chosen, ambiguous if len(ambiguous) > 1 else []
 
 
-def _selection_doc(rule, cal, min_gain, candidates):
+def _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose, sort=False):
+    """Issue-6 rule over the accepted entries (held-out gain >= min_gain and lower BIC on one split): the best one,
+    then a second added greedily if it passes the same test against the one-effect model.  Returns ``(selected, chosen)``."""
+    if sort:
+        accepted = sorted(accepted, key=lambda c: c["heldout_rmse"])
+    if not accepted:
+        return [], None
+    first = accepted[0]["name"]
+    selected, chosen = [first], fitted[first][0]
+    cur_h, cur_ic = fitted[first][1], fitted[first][2]
+    for c in accepted[1:]:
+        if len(selected) >= max_effects or isinstance(chosen, Preisach):
+            break
+        if c["name"] == NONLOCAL_MEMORY["name"]:
+            continue  # a base replacement, not an effect to add
+        m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
+        _, te2 = _metrics_pair(m2, split)
+        ic2 = information_criteria(m2, split.train)
+        ok = te2["rmse"] <= (1.0 - min_gain) * cur_h and ic2["bic"] < cur_ic["bic"]
+        c["combined_with"] = {
+            "effects": selected + [c["name"]],
+            "heldout_rmse": te2["rmse"],
+            "delta_bic_vs_previous": ic2["bic"] - cur_ic["bic"],
+            "accepted": bool(ok),
+        }
+        if ok:
+            selected, chosen, cur_h, cur_ic = selected + [c["name"]], m2, te2["rmse"], ic2
+    return selected, chosen
+
+
+def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
     """The selection rule as applied, for diagnosis.json (with the legacy decision of each fitted candidate)."""
     legacy = [c["name"] for c in candidates if c.get("legacy_accepted")]
+    extra = {} if legacy_selected is None else {"legacy_selected": legacy_selected}
     if rule == "legacy":
         return {
             "rule": "legacy",
@@ -1058,6 +1102,7 @@ def _selection_doc(rule, cal, min_gain, candidates):
             "extrapolated from their mean and standard deviation, not counted"
         ),
         "legacy_accepted": legacy,
+        **extra,
     }
 
 
@@ -1106,6 +1151,7 @@ def diagnose(
     n_null=CALIBRATED_DEFAULTS["n_null"],
     n_folds=CALIBRATED_DEFAULTS["n_folds"],
     seed=0,
+    compare_legacy=False,
 ):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
 
@@ -1117,7 +1163,8 @@ def diagnose(
     ``rule="calibrated"`` (default, issue 13) accepts an effect only through `calibration_gates` (held-out gain
     >= ``min_gain``, max error not raised, gain positive in all or all but one of ``n_folds`` folds, gain above
     the (1 - ``fpr``) quantile of ``n_null`` parametric-bootstrap null records; ``seed`` seeds the nulls);
-    ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC).
+    ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC);
+    ``compare_legacy`` also records what it would select (``result["selection"]["legacy_selected"]``).
     """
     if rule not in SELECTION_RULES:
         raise UserInputError(f"rule must be one of {SELECTION_RULES}, got {rule!r}")
@@ -1236,26 +1283,20 @@ def diagnose(
             verbose=verbose,
         )
     elif accepted:
-        first = accepted[0]["name"]
-        selected, chosen = [first], fitted[first][0]
-        cur_h, cur_ic = fitted[first][1], fitted[first][2]
-        for c in accepted[1:]:
-            if len(selected) >= max_effects or isinstance(chosen, Preisach):
-                break
-            if c["name"] == NONLOCAL_MEMORY["name"]:
-                continue  # a base replacement, not an effect to add
-            m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
-            _, te2 = _metrics_pair(m2, split)
-            ic2 = information_criteria(m2, split.train)
-            ok = te2["rmse"] <= (1.0 - min_gain) * cur_h and ic2["bic"] < cur_ic["bic"]
-            c["combined_with"] = {
-                "effects": selected + [c["name"]],
-                "heldout_rmse": te2["rmse"],
-                "delta_bic_vs_previous": ic2["bic"] - cur_ic["bic"],
-                "accepted": bool(ok),
-            }
-            if ok:
-                selected, chosen, cur_h, cur_ic = selected + [c["name"]], m2, te2["rmse"], ic2
+        selected, chosen = _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose)
+    legacy_selected = None
+    if compare_legacy and rule == "calibrated":
+        import copy
+
+        legacy_selected = _select_legacy(
+            [copy.deepcopy(c) for c in candidates if c.get("legacy_accepted")],
+            fitted,
+            split,
+            min_gain,
+            max_effects,
+            verbose,
+            sort=True,
+        )[0]
     _decisions(candidates, selected, ambiguous, rule)
     ext_tr, ext_te = _metrics_pair(chosen, split)
     _, ext_res_te = score(chosen, split.test)
@@ -1320,7 +1361,7 @@ def diagnose(
         "strongest_remaining_correlate": strongest,
         "ambiguous": ambiguous,
         "warnings": warnings,
-        "selection": _selection_doc(rule, cal, min_gain, candidates),
+        "selection": _selection_doc(rule, cal, min_gain, candidates, legacy_selected),
         "settings": {
             "max_candidates": max_candidates,
             "min_gain": min_gain,

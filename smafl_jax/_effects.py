@@ -426,7 +426,8 @@ class ExtendedModel(eqx.Module):
         n = x.shape[0]
         t = jnp.arange(n, dtype=jnp.float64) * dt
         q_amb = amb.drift * qref * t / DRIFT_TIME if amb is not None else jnp.zeros(n)
-        q0 = x[0] ** 2 if th.init == "steady" else jnp.zeros_like(x[0])
+        # q = theta k1/k2, so every init rule of JouleThermal maps over (steady: x0^2, given: u0^2, ambient: 0)
+        q0 = th.initial_state(x[0]) * (th.k1 / th.k2)
         beta = res.beta / qref if res is not None else None
         gamma = nlc.gamma / qref if nlc is not None else None
         rho = jnp.exp(asym.log_ratio) if asym is not None else None
@@ -458,7 +459,8 @@ class ExtendedModel(eqx.Module):
         if lag is not None:
             x = _lowpass(x, dt, lag.tau)
         if isinstance(self.base, Cascade):
-            return _safe_sqrt(self._thermal(x, dt))
+            q = self._thermal(x, dt)
+            return q if self.base.sees == "heat" else _safe_sqrt(q)
         amb = self.get("ambient_drift")
         if amb is not None:
             t = jnp.arange(x.shape[0], dtype=jnp.float64) * dt

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ._baselines import BASELINES, baselines_doc, baselines_markdown, compare_sentences, is_voltage
+from ._baselines import TITLES as BASELINE_TITLES
 from ._errors import UserInputError
 from ._metrics import metrics
 
@@ -40,7 +41,18 @@ log = logging.getLogger(__name__)
 #: Findings listed one by one in a report; the rest are counted (all are in fit.json).
 MAX_FINDING_LINES = 20
 #: Options of `fit_record` that `fit_records` takes (``split``: ``"auto"`` = LORO with >= 2 records, ``"none"`` = no LORO).
-FIT_OPTIONS = ("split", "val_fraction", "solver", "max_steps", "thresholds", "tilts", "grid", "orientation", "thermal_start")
+FIT_OPTIONS = (
+    "split",
+    "val_fraction",
+    "solver",
+    "max_steps",
+    "thresholds",
+    "tilts",
+    "grid",
+    "orientation",
+    "thermal_start",
+    "sees",
+)
 
 
 # -- data checks ------------------------------------------------------------------------
@@ -168,6 +180,49 @@ def _mean_metrics(rows: list[dict | None]) -> dict | None:
     return out
 
 
+def loro_sentences(folds: list[dict]) -> list[str]:
+    """One verdict per baseline over the LORO folds: per-record wins, median RMSE ratio, means of RMSE and e_r.
+
+    The model "beats" a baseline only when its mean held-out RMSE is lower *and* it
+    is lower on more than half of the held-out records: one badly predicted
+    record (spikes, an odd run) must not decide the verdict either way.
+    """
+    out = []
+    scored = [f for f in folds if f["model"]]
+    if not scored:
+        return ["no fold model gave a finite prediction: the model is not compared with the baselines"]
+    n = len(scored)
+    mm = _mean_metrics([f["model"] for f in scored])
+    for k in BASELINES:
+        bs = [f["baselines"][k] for f in scored]
+        ratios = [f["model"]["rmse"] / b["rmse"] if b["rmse"] > 0 else math.inf for f, b in zip(scored, bs)]
+        wins = sum(r < 1 for r in ratios)
+        mb = _mean_metrics(bs)
+        nums = (
+            f"lower held-out RMSE on {wins} of {n} records, median RMSE ratio {float(np.median(ratios)):.2f}; "
+            f"mean RMSE {mm['rmse']:.4g} vs {mb['rmse']:.4g}, mean e_r {mm['e_r_percent']:.3g} % vs {mb['e_r_percent']:.3g} %"
+        )
+        if mm["rmse"] < mb["rmse"] and wins > n / 2:
+            out.append(f"the model beats baseline {k} on held-out records: {nums}")
+        else:
+            out.append(f"the model does not beat baseline {k} ({BASELINE_TITLES[k]}) on held-out data: {nums}")
+    return out
+
+
+def _dominant_fold(folds: list[dict]) -> str | None:
+    scored = [f for f in folds if f["model"]]
+    if len(scored) < 3:
+        return None
+    r = np.array([f["model"]["rmse"] for f in scored])
+    k = int(np.argmax(r))
+    if r[k] > 0.5 * r.sum():
+        return (
+            f"the mean held-out error is dominated by record {scored[k]['record']} (RMSE {r[k]:.4g}; median over records "
+            f"{float(np.median(r)):.4g}): look at its data-check findings before reading the mean"
+        )
+    return None
+
+
 def _unique_names(records) -> list[str]:
     names = [r.name for r in records]
     seen = Counter(names)
@@ -202,6 +257,7 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
         "grid": None,
         "orientation": "auto",
         "thermal_start": "auto",
+        "sees": "auto",
     }
     opts.update(fit_record_kwargs)
     records = [records] if hasattr(records, "u") else list(records)
@@ -278,7 +334,9 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
     final_bl["heldout_kind"] = (
         "mean over leave-one-record-out folds (each baseline refitted on the training records of the fold)" if folds else None
     )
-    final_bl["verdict"] = compare_sentences(mean_model, {k: final_bl["models"][k]["heldout"] for k in BASELINES})
+    final_bl["verdict"] = (
+        loro_sentences(folds) if folds else compare_sentences(None, {k: final_bl["models"][k]["heldout"] for k in BASELINES})
+    )
 
     notes = list(info["notes"])
     if info["structure"] == "cascade":
@@ -296,6 +354,9 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
         structures = {f["structure"] for f in folds} | {info["structure"]}
         if len(structures) > 1:
             notes.append(f"model auto chose different structures across folds: {sorted(structures)}")
+    heavy = _dominant_fold(folds)
+    if heavy:
+        notes.append(heavy)
     if len(records) == 1:
         notes.append("one record: no leave-one-record-out validation (give two or more records for a held-out error)")
     elif not loro:

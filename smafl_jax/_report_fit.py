@@ -92,6 +92,7 @@ def fit_record(
     grid=None,
     orientation="auto",
     thermal_start="auto",
+    sees="auto",
     progress=False,
 ):
     """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content.
@@ -120,7 +121,7 @@ def fit_record(
         if progress:
             print("screening start candidates (output orientation, thermal start) on the training samples", file=sys.stderr)
         start, screening, screen_info = screen_start(
-            start, record, [train.astype(float)], orientation=orientation, thermal_start=thermal_start, progress=progress
+            start, record, [train.astype(float)], orientation=orientation, thermal_start=thermal_start, sees=sees, progress=progress
         )
         init = None  # the screened start is already profiled
     spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
@@ -173,6 +174,7 @@ def fit_record(
             "structure": structure,
             "orientation": orientation,
             "thermal_start": thermal_start,
+            "sees": sees,
             "start_screening": screening,
             "split": split_info["kind"],
             "val_fraction": val_fraction,

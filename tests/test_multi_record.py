@@ -160,3 +160,20 @@ def test_input_range_check_counts():
     assert "3 of 6 samples" in c["warning"] and "50.0 % of the fitted span" in c["warning"]
     assert "warning" not in input_range_check(u, [-1.0, 6.0])
     assert not input_range_check(u, None)["checked"]
+
+
+def test_loro_verdict_needs_most_records_not_just_the_mean():
+    from smafl_jax._multi_record import _dominant_fold, loro_sentences
+
+    def fold(name, m, b):
+        met = lambda r: {"rmse": r, "e_r_percent": 10 * r, "max_abs_error": 2 * r, "mean_abs_error": r, "n_samples": 10}
+        return {"record": name, "model": met(m), "baselines": {"static_poly": met(b), "first_order_lag": met(b)}}
+
+    # one record rescues the mean (20 vs 25) while the model loses on the other three
+    folds = [fold("a", 3.0, 2.9), fold("b", 3.0, 2.9), fold("c", 3.0, 2.9), fold("d", 20.0, 25.0)]
+    v = loro_sentences(folds)
+    assert all("does not beat" in s and "1 of 4 records" in s for s in v)
+    assert "dominated by record d" in _dominant_fold(folds)
+    v = loro_sentences([fold("a", 1.0, 2.0), fold("b", 1.0, 2.0), fold("c", 3.0, 2.9)])
+    assert all(s.startswith("the model beats") and "2 of 3 records" in s for s in v)
+    assert _dominant_fold(folds[:3]) is None

@@ -69,6 +69,13 @@ def add_parser(sub):
         help="does the output rise or fall when the actuator contracts (length sensors fall); default: screened",
     )
     p.add_argument(
+        "--sees",
+        choices=("auto", "voltage", "heat"),
+        default="auto",
+        help="cascade: the hysteresis acts on the effective voltage (paper) or on the heat / temperature rise (V^2); "
+        "default: screened",
+    )
+    p.add_argument(
         "--thermal-start",
         choices=("auto", "steady", "cold", "fitted"),
         default="auto",
@@ -128,6 +135,7 @@ def run(args):
         tilts=args.tilts,
         orientation=args.orientation,
         thermal_start=args.thermal_start,
+        sees=args.sees,
         grid=grid,
         progress=True,
     )
@@ -181,6 +189,7 @@ def _run_records(args, records, grid):
         tilts=args.tilts,
         orientation=args.orientation,
         thermal_start=args.thermal_start,
+        sees=args.sees,
         grid=grid,
         progress=True,
     )

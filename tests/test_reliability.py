@@ -1,0 +1,354 @@
+"""Reliability of the CLI on bad input (issue 16): one clear line and exit 2, nothing left behind,
+no silent success on invalid values, Ctrl-C -> 130, fast --help / --version, chunked sweeps with
+progress, and the sampler's acceptance fraction after a resume.  One test per class of case."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import smafl_jax as sj
+from smafl_jax.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DATASETS = ROOT / "datasets"
+TRUTH = DATASETS / "truth.json"
+RECORD = DATASETS / "minor_loop.csv"
+ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+
+def _one_error_line(err, command):
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert lines, "no error message"
+    assert "Traceback" not in err
+    assert lines[-1].startswith(f"smafl {command}: error: "), lines[-1]
+    return lines[-1]
+
+
+def _short_record(tmp_path, n=200, scale=1.0, constant=False, output=True):
+    d = np.genfromtxt(RECORD, delimiter=",", names=True)[:n]
+    y = np.full(n, 1.5) if constant else d["displacement_mm"] * scale
+    cols = {"time_s": d["time_s"], "voltage_V": d["voltage_V"]}
+    if output:
+        cols["displacement_mm"] = y
+    path = tmp_path / f"rec_{n}_{scale:g}_{int(constant)}_{int(output)}.csv"
+    sj.atomic_write_csv(path, cols)
+    return path
+
+
+# -- output paths ------------------------------------------------------------------------------------
+
+
+def _bad_out_commands(tmp_path, out):
+    rec = str(_short_record(tmp_path))
+    return {
+        "simulate": ["simulate", str(TRUTH), rec, "--out", out],
+        "fit": ["fit", rec, "--model", "eupi", "--out", out],
+        "control": ["control", "--model", str(TRUTH), "--duration", "1", "--out", out],
+        "sweep": ["sweep", "--model", str(TRUTH), "--duration", "1", "--x", "kp=1,2", "--y", "ki=1,2", "--out", out],
+        "diagnose": ["diagnose", rec, "--out", out],
+        "check": ["check", rec, "--json", out],
+    }
+
+
+@pytest.mark.parametrize("where", ["proc", "sys", "file_as_folder", "folder_as_file"])
+def test_unwritable_output_paths_exit_2_with_one_line(tmp_path, capsys, where):
+    if where == "proc":
+        out = "/proc/smafl_out/x"
+    elif where == "sys":
+        if not Path("/sys").is_dir() or (os.access("/sys", os.W_OK) and os.geteuid() != 0):
+            pytest.skip("no read-only /sys here")
+        out = "/sys/smafl_out"
+    elif where == "file_as_folder":
+        (tmp_path / "afile").write_text("x")
+        out = str(tmp_path / "afile" / "out")
+    else:
+        (tmp_path / "adir").mkdir()
+        out = str(tmp_path / "adir")
+    for command, args in _bad_out_commands(tmp_path, out).items():
+        if where == "folder_as_file" and command not in ("simulate", "check"):
+            continue  # a folder is what these commands want
+        before = sorted(p.name for p in tmp_path.iterdir())
+        rc = main(args)
+        err = capsys.readouterr().err
+        assert rc == 2, (command, err)
+        line = _one_error_line(err, command)
+        assert out.split("/x")[0] in line or Path(out).name in line, line
+        assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing created
+
+
+def test_atomic_writer_failure_names_path_and_leaves_no_temp_file(tmp_path, monkeypatch):
+    def refuse(src, dst):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(sj.UserInputError, match=r"result\.json: Read-only file system"):
+        sj.atomic_write_json(tmp_path / "result.json", {"a": 1})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_read_only_output_folder_is_refused_before_any_work(tmp_path, monkeypatch):
+    import tempfile
+
+    real = tempfile.mkstemp
+
+    def read_only(*a, dir=None, **k):
+        if dir is not None and "ro" in Path(dir).parts:
+            raise OSError(30, "Read-only file system")
+        return real(*a, dir=dir, **k)
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    (tmp_path / "ro").mkdir()
+    with pytest.raises(sj.UserInputError, match=r"cannot write to output folder .*ro: Read-only"):
+        sj.prepare_out_dir(tmp_path / "ro")
+    with pytest.raises(sj.UserInputError, match="Read-only"):
+        sj.prepare_out_dir(tmp_path / "ro" / "new")
+    assert not (tmp_path / "ro" / "new").exists()  # the folder it created is removed again
+
+
+# -- validation before anything is written -------------------------------------------------------------
+
+
+def test_validation_errors_leave_nothing_behind(tmp_path, capsys):
+    rec = str(_short_record(tmp_path))
+    no_output = str(_short_record(tmp_path, output=False))
+    empty_ref = tmp_path / "empty_ref.csv"
+    empty_ref.write_text("")
+    out = tmp_path / "new" / "out"
+    m = str(tmp_path / "m.json")
+    cases = [
+        (["sample", rec, "--fit", str(TRUTH), "--steps", "50", "--burn", "80"], "--burn"),
+        (["sample", rec, "--fit", str(TRUTH), "--gain-scale", "-1"], "--gain-scale"),
+        (["sample", rec, "--fit", str(TRUTH), "--walkers", "2", "--steps", "20"], "walkers"),
+        (["simulate", str(TRUTH), no_output, "--metrics", m], "--metrics"),
+        (["control", "--model", str(TRUTH), "--kp", "-1"], "--kp"),
+        (["control", "--model", str(TRUTH), "--reference", str(empty_ref)], "empty"),
+        (["control", "--model", str(TRUTH), "--duration", "1e9"], "limit"),
+        (["control", "--model", str(TRUTH), "--dt", "1e-9"], "limit"),
+        (["sweep", "--model", str(TRUTH), "--x", "kp=-50:5:3", "--y", "ki=1,2"], "kp must be >= 0"),
+        (["sweep", "--model", str(TRUTH), "--x", "K=0,1", "--y", "tf=0,1"], "tf must be > 0"),
+    ]
+    for args, expect in cases:
+        target = str(tmp_path / "pred.csv") if args[0] == "simulate" else str(out)
+        rc = main(args + ["--out", target])
+        err = capsys.readouterr().err
+        assert rc == 2, (args, err)
+        assert expect in _one_error_line(err, args[0]), err
+        assert not (tmp_path / "new").exists() and not (tmp_path / "pred.csv").exists(), args
+        assert not Path(m).exists()
+
+
+def test_failed_run_removes_only_the_empty_folder_it_created(tmp_path, capsys, monkeypatch):
+    from smafl_jax.cli import control
+
+    def boom(args):
+        sj.prepare_out_dir(args.out)
+        raise sj.UserInputError("late failure")
+
+    monkeypatch.setattr(control, "run", boom)
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "keep.txt").write_text("earlier results")
+    assert main(["control", "--out", str(tmp_path / "a" / "b")]) == 2
+    assert not (tmp_path / "a").exists()
+    assert main(["control", "--out", str(old)]) == 2
+    assert (old / "keep.txt").read_text() == "earlier results"
+
+    def interrupted(args):
+        sj.prepare_out_dir(args.out)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(control, "run", interrupted)
+    assert main(["control", "--out", str(tmp_path / "c")]) == 130
+    assert capsys.readouterr().err.strip().endswith("smafl control: interrupted")
+    assert not (tmp_path / "c").exists()
+
+
+# -- silent success on invalid input ------------------------------------------------------------------
+
+
+def test_model_file_with_nonpositive_constrained_parameter_is_refused(tmp_path):
+    doc = json.loads(TRUTH.read_text())
+    good = sj.model_from_dict(doc["model"])
+    assert float(good.thermal.k1) > 0
+    for path, value, ok in [
+        (("thermal", "k1"), -1.0, False),
+        (("thermal", "k1"), 0.0, False),
+        (("hysteresis", "gain"), -0.5, False),
+        (("hysteresis", "gain"), 0.0, True),  # a zero gain (non-negative least squares) is a valid model
+        (("hysteresis", "poly"), [-5.0, 1.0], True),  # unconstrained field
+    ]:
+        d = json.loads(json.dumps(doc))
+        d["model"][path[0]][path[1]] = value
+        f = tmp_path / "m.json"
+        f.write_text(json.dumps(d))
+        if ok:
+            sj.load_model(f)
+        else:
+            with pytest.raises(sj.UserInputError, match=f"model.{path[0]}.{path[1]}: must be"):
+                sj.load_model(f)
+
+
+def test_values_whose_squares_overflow_are_refused(tmp_path, capsys):
+    huge = _short_record(tmp_path, scale=1e300)
+    rc = main(["fit", str(huge), "--model", "eupi", "--out", str(tmp_path / "f")])
+    assert rc == 2 and "too large" in _one_error_line(capsys.readouterr().err, "fit")
+    assert not (tmp_path / "f").exists()
+    rec = sj.load_record(huge)
+    with pytest.raises(sj.UserInputError, match="too large"):
+        sj.default_priors(["thermal.k1", "thermal.k2"], [(rec.u, rec.y, rec.dt)])
+    # large but usable scales give finite priors (the k2 prior used to overflow in umax**2)
+    pri = sj.default_priors(["thermal.k2"], [(np.array([0.0, 1e160]), np.array([0.0, 1.0]), 1.0)])
+    assert np.isfinite(pri["thermal.k2"].loc)
+
+
+def test_constant_output_is_an_error_for_fit_and_undefined_e_r_for_simulate(tmp_path, capsys):
+    const = _short_record(tmp_path, constant=True)
+    assert main(["fit", str(const), "--model", "eupi", "--out", str(tmp_path / "f")]) == 2
+    assert "constant" in _one_error_line(capsys.readouterr().err, "fit")
+    assert not (tmp_path / "f").exists()
+    out = tmp_path / "p.csv"
+    assert main(["simulate", str(TRUTH), str(const), "--out", str(out), "--measured", "displacement_mm"]) == 0
+    text = capsys.readouterr().out
+    assert "e_r undefined" in text and "nan" not in text
+
+
+def test_oversized_csv_field_is_a_data_error(tmp_path):
+    path = tmp_path / "big.csv"
+    body = "".join(f"{0.1 * i},1,2\n" for i in range(20))
+    path.write_text("time_s,voltage_V,displacement_mm\n" + body + "2.0," + "x" * 200_000 + ",1\n")
+    with pytest.raises(sj.DataError, match="row 22"):
+        sj.load_record(path)
+
+
+def test_sample_refuses_a_diagnose_extended_model(tmp_path, capsys):
+    from smafl_jax._bayes import check_model_supported
+
+    ext = sj.ExtendedModel(sj.load_model(TRUTH), ())
+    with pytest.raises(sj.UserInputError, match="ExtendedModel"):
+        check_model_supported(ext)
+    fit = tmp_path / "extended_fit.json"
+    sj.save_model(fit, ext)
+    rc = main(["sample", str(_short_record(tmp_path)), "--fit", str(fit), "--out", str(tmp_path / "s")])
+    assert rc == 2 and "base_fit.json" in _one_error_line(capsys.readouterr().err, "sample")
+    assert not (tmp_path / "s").exists()
+
+
+# -- sweeps: chunks, progress, any values ---------------------------------------------------------------
+
+
+def test_chunked_sweep_equals_one_call_and_reports_progress():
+    from smafl_jax._control import PID, ClosedLoop, IICompensator, sine_reference
+    from smafl_jax._sweep import sweep
+
+    model = sj.load_model(TRUTH)
+    import jax.numpy as jnp
+
+    base = ClosedLoop(
+        plant=model, pid=PID(), reference=jnp.asarray(sine_reference(3.0, 0.05)), compensator=IICompensator(model, 10.0)
+    )
+    grid = {"pid.kp": np.linspace(0, 60, 5), "compensator.K": np.array([0.0, 5.0, 10.0])}
+    calls = []
+    chunked = sweep(base, 0.05, grid, chunk=4, progress=lambda d, n, t: calls.append((d, n)))
+    whole = sweep(base, 0.05, grid)
+    for k in whole.metrics:
+        np.testing.assert_array_equal(chunked.metrics[k], whole.metrics[k])
+    assert [d for d, _ in calls] == [4, 8, 12, 15] and {n for _, n in calls} == {15}
+
+
+def test_sweep_with_extreme_values_plots_and_writes_all(tmp_path, capsys):
+    out = tmp_path / "sw"
+    args = ["sweep", "--model", str(TRUTH), "--duration", "1", "--x", "kp=1e308,1", "--y", "ki=1,2", "--out", str(out)]
+    assert main(args) == 0, capsys.readouterr().err
+    for f in ("heatmap.png", "sweep.csv", "best.csv", "metrics.json"):
+        assert (out / f).stat().st_size > 0
+    assert "sweep: 4/4 configurations" in capsys.readouterr().err
+
+
+# -- sampler resume ----------------------------------------------------------------------------------
+
+
+def _joule_posterior():
+    import jax.numpy as jnp
+
+    rng = np.random.default_rng(7)
+    u = np.zeros(120)
+    u[10:] = 5.0
+    u[60:] = 2.0
+    truth = sj.JouleThermal(k1=jnp.asarray(0.0625), k2=jnp.asarray(0.055))
+    y = np.asarray(truth.simulate(u, 0.5)) + 0.05 * rng.standard_normal(u.size)
+    return sj.Posterior(truth, (u, y), 0.5)
+
+
+def test_acceptance_fraction_is_counted_from_the_chain_and_survives_a_resume(tmp_path):
+    import h5py
+
+    from smafl_jax._bayes import _hdf_backend
+
+    post = _joule_posterior()
+    ref = sj.run_sampler(post, 40, n_walkers=8, path=tmp_path / "ref.h5", seed=5, progress=False)
+    be = _hdf_backend(tmp_path / "ref.h5", "mcmc", read_only=True)
+    # uninterrupted: identical to emcee's own count
+    np.testing.assert_array_equal(ref.acceptance_fraction, np.asarray(be.accepted) / be.iteration)
+    # a hard kill between emcee's writes can leave `accepted` one step ahead of the chain
+    path = tmp_path / "run.h5"
+    sj.run_sampler(post, 25, n_walkers=8, path=path, seed=5, progress=False)
+    with h5py.File(path, "a") as f:
+        f["mcmc"]["accepted"][:] += 1
+    run = sj.run_sampler(post, 40, n_walkers=8, path=path, seed=5, progress=False)
+    assert run.resumed_from == 25
+    np.testing.assert_array_equal(run.chain, ref.chain)
+    np.testing.assert_array_equal(run.acceptance_fraction, ref.acceptance_fraction)
+    np.testing.assert_array_equal(sj.load_run(path, post.names).acceptance_fraction, ref.acceptance_fraction)
+
+
+# -- startup, version, interrupts (subprocesses) ---------------------------------------------------------
+
+
+def test_help_and_version_do_not_import_jax():
+    code = (
+        "import sys\nfrom smafl_jax.cli import main\n"
+        "for a in (['--help'], ['--version']):\n"
+        "    try:\n        main(a)\n    except SystemExit as e:\n        assert e.code == 0\n"
+        "print('JAX' if 'jax' in sys.modules else 'NOJAX')\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "usage: smafl" in r.stdout and f"smafl {sj.__version__}" in r.stdout
+    assert r.stdout.strip().endswith("NOJAX")
+
+
+def test_top_level_help_matches_the_command_modules():
+    from smafl_jax.cli import COMMANDS, build_parser
+
+    parser = build_parser("*")
+    sub = next(a for a in parser._actions if a.dest == "command")
+    assert {a.dest: a.help for a in sub._choices_actions} == COMMANDS
+
+
+def test_ctrl_c_exits_130_without_traceback_or_leftovers(tmp_path):
+    out = tmp_path / "sweep_out"
+    cmd = [sys.executable, "-m", "smafl_jax", "sweep", "--model", str(TRUTH), "--duration", "200"]
+    cmd += ["--x", "kp=0:60:400", "--y", "K=0:20:400", "--out", str(out)]
+    proc = subprocess.Popen(
+        cmd,
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        env=ENV,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    for line in proc.stderr:
+        if line.startswith("sweeping"):
+            break
+    proc.send_signal(signal.SIGINT)
+    rest = proc.stderr.read()
+    proc.wait(timeout=60)
+    assert proc.returncode == 130, rest
+    assert "Traceback" not in rest and rest.strip().endswith("smafl sweep: interrupted")
+    assert not out.exists()
