@@ -22,6 +22,7 @@ SECTIONS = [
     ("sysid", "bench_sysid", "2b. Identification vs jax-sysid"),
     ("emcee", "bench_emcee", "3. emcee log-probability evaluations"),
     ("control", "bench_control", "4. Closed-loop sweeps"),
+    ("parallel_time", "bench_parallel_time", "5. Parallel-in-time forward pass: compile and run time by method (issue 15)"),
 ]
 DEFAULT_RATIO = "as defined by the section (see its module docstring)"
 README_MARK = "<!-- section:performance -->"

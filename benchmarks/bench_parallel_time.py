@@ -207,7 +207,7 @@ def run(quick: bool = False, sizes=None) -> list[dict]:
 def _print(rows):
     print(f"{'benchmark':44s} {'method s':>10s} {'scan s':>10s} {'scan/method':>11s}  note")
     for r in rows:
-        f = lambda x, fmt: "-" if x is None else format(x, fmt)  # noqa: E731
+        f = lambda x, fmt: "-" if x is None else format(x, fmt)
         print(
             f"{r['name']:44s} {f(r['ours'], '10.4g')} {f(r['baseline'], '10.4g')} {f(r['ratio'], '11.3g')}  {r.get('note', '')}"
         )

@@ -103,6 +103,9 @@ _LAZY = {
     "SweepResult": "_sweep",
     "stack_models": "_sweep",
     "sweep": "_sweep",
+    "initialize_from_env": "_distributed",
+    "choose_model_method": "_operators",
+    "model_with_method": "_operators",
 }
 
 
@@ -206,6 +209,9 @@ __all__ = [
     "step_reference",
     "summarize",
     "sweep",
+    "initialize_from_env",
+    "choose_model_method",
+    "model_with_method",
     "SweepResult",
     "thermal_step",
     "threshold_grid",

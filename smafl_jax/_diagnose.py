@@ -24,11 +24,19 @@ Procedure (`diagnose`):
 5. **Attribution**: the plausible effects (p < 0.01), best first, up to
    ``max_candidates``, are each fitted jointly with the base model (grid start
    for the effect's nonlinear parameters, linear least squares for the gains,
-   then joint Levenberg-Marquardt).  An effect is *accepted* when it lowers the
-   held-out RMSE by at least ``min_gain`` (5 %) and lowers the training BIC;
-   the best accepted one is selected, and a second effect is added greedily only
-   if it passes the same test against the one-effect model.  Nothing accepted:
-   ``selected = []`` and the strongest remaining residual correlate is reported.
+   then joint Levenberg-Marquardt).  Selection, ``rule="calibrated"`` (default,
+   issue 13, `calibration_gates`): an effect is *accepted* when its held-out
+   RMSE gain is >= ``min_gain`` (5 %), it does not raise the held-out max
+   |error|, its gain is positive in all (or all but one) of 3 folds (contiguous
+   time blocks each held out in turn, or the 3 branch residues), and the gain
+   exceeds the (1 - fpr) quantile (fpr 1 %) of the gains the same effect reaches
+   on 10 parametric-bootstrap null records (the fitted model without the effect
+   plus an AR model of its own training residuals).  The best accepted one is
+   selected; accepted ones within 10 % of its held-out RMSE are reported as an
+   ambiguous set; a second effect must pass the same gates against the
+   one-effect model.  ``rule="legacy"`` (issue 6): held-out gain >= ``min_gain``
+   on one split and lower training BIC.  Nothing accepted: ``selected = []``
+   and the strongest remaining residual correlate is reported.
 6. **Base replacement** ``nonlocal_memory`` (rate-free records only: a
    ``branch`` column or dt >= 5 s): a discrete Preisach model
    (`smafl_jax._preisach`) replaces the EUPI; grid size and Tikhonov strength

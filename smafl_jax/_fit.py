@@ -583,7 +583,10 @@ def fit(
     start = _lift_zero_gains(model, spec, profiled=init == "profile")
     say(f"joint refinement: {solver}, up to {max_steps} steps")
     t1 = time.perf_counter()
-    fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
+    from ._progress import heartbeat
+
+    with heartbeat(f"joint refinement ({solver})", enabled=progress):
+        fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
     info["refine_seconds"] = time.perf_counter() - t1
     info["total_seconds"] = time.perf_counter() - t0
     finite = np.isfinite(loss) and _finite_tree(fitted)

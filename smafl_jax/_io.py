@@ -304,7 +304,7 @@ def atomic_write_csv(path, columns: dict, *, fmt="%.10g"):
 
 
 def check_writable_file(path, what="output file"):
-    """Fail early (before any work) when ``path`` cannot be written: a folder, or a folder that is not writable."""
+    """Fail early (before any work) when ``path`` cannot be written: a folder, or in a folder that cannot be written."""
     path = Path(path)
     if path.is_dir():
         raise UserInputError(f"{what} {path} is a folder; give a file name")
@@ -313,8 +313,12 @@ def check_writable_file(path, what="output file"):
         parent = parent.parent
     if not parent.is_dir():
         raise UserInputError(f"cannot write {what} {path}: {parent} is a file, not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise UserInputError(f"cannot write {what} {path}: {parent} is not writable")
+    try:  # a probe file in the nearest existing folder: catches read-only and special file systems
+        fd, probe = tempfile.mkstemp(dir=parent, prefix=".smafl-write-probe.")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise UserInputError(f"cannot write {what} {path}: {_os_message(exc)}") from None
     return path
 
 

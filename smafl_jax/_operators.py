@@ -32,6 +32,7 @@ __all__ = [
     "MODEL_METHODS",
     "choose_model_method",
     "resolve_method",
+    "model_with_method",
     "play_step",
     "play",
     "play_scan",
@@ -70,6 +71,35 @@ def resolve_method(method: str, T: int, n: int, where: str = "method") -> str:
     if method not in ops.METHODS:
         raise ValueError(f"{where} must be one of {MODEL_METHODS}, got {method!r}")
     return method
+
+
+def model_with_method(model, method: str):
+    """Copy of ``model`` with every EUPI and JouleThermal inside it evaluated by ``method``.
+
+    Works for a `Cascade`, an `EUPI`, a `JouleThermal` or any model containing them (e.g. an
+    `ExtendedModel`; its effects' own recurrences keep their sequential form).  ValueError when
+    ``method`` is unknown or the model has no part with an evaluation method.
+    """
+    import dataclasses
+
+    from ._eupi import EUPI
+    from ._thermal import JouleThermal
+
+    if method not in MODEL_METHODS:
+        raise ValueError(f"method must be one of {MODEL_METHODS}, got {method!r}")
+    kinds = (EUPI, JouleThermal)
+    found = []
+
+    def switch(x):
+        if isinstance(x, kinds):
+            found.append(type(x).__name__)
+            return dataclasses.replace(x, method=method)
+        return x
+
+    out = jax.tree.map(switch, model, is_leaf=lambda x: isinstance(x, kinds))
+    if not found:
+        raise ValueError(f"{type(model).__name__} has no EUPI or JouleThermal part, so no evaluation method to set")
+    return out
 
 
 def _bounds(u, r, alpha):

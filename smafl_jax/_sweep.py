@@ -30,6 +30,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from . import _config  # noqa: F401
 from ._control import ClosedLoop, _check_dt, _scan_loop
+from ._distributed import to_host
 
 __all__ = ["sweep", "stack_models", "batch_configs", "SweepResult"]
 
@@ -172,7 +173,8 @@ def sweep(base: ClosedLoop, dt, grid: dict, *, mode="product", shard=True, chunk
         hi = min(n, lo + size)
         xs = [piece(x, lo, hi) if a == 0 else x for x, a in zip(flat_x, flat_ax)]
         out = _run_partitioned(jax.tree.unflatten(tdef, xs), static, tuple(flat_ax), tdef, dt)
-        parts.append({k: np.asarray(v)[: hi - lo] for k, v in out.items()})
+        # to_host: with several processes (jax.distributed) the result is sharded across them; gather it everywhere
+        parts.append({k: v[: hi - lo] for k, v in to_host(out).items()})
         if progress is not None:
             progress(hi, n, time.monotonic() - t0)
     metrics = {k: np.concatenate([p[k] for p in parts]).reshape(shape) for k in parts[0]}

@@ -272,7 +272,7 @@ def test_strain_accumulation_c_is_profiled(truth, drives):
 
 def test_diagnosis_finds_strain_accumulation(truth, drives):
     rec, true = synthetic_effect_record(truth, drives, "strain_accumulation", seed=6)
-    res, *_ = diagnose(rec, max_candidates=2, refit=False, verbose=False)
+    res, *_ = diagnose(rec, max_candidates=2, refit=False, verbose=False, rule="legacy")
     assert res["selected"] == ["strain_accumulation"]
     assert res["extended"]["heldout_rmse"] < 2.0 * 0.003 < 0.5 * res["base"]["heldout_rmse"]
     p = res["extended"]["parameters"]["strain_accumulation"]
@@ -371,7 +371,7 @@ def test_residual_statistics(rng):
 
 def test_diagnosis_finds_creep(truth, drives):
     rec, true = synthetic_effect_record(truth, drives, "creep", seed=7)
-    res, base, ext, split = diagnose(rec, max_candidates=2, verbose=False)
+    res, base, ext, split = diagnose(rec, max_candidates=2, verbose=False, rule="legacy")
     assert res["selected"] == ["creep"]
     assert res["extended"]["heldout_rmse"] < 0.5 * res["base"]["heldout_rmse"]
     assert res["extended"]["heldout_rmse"] < 2.0 * 0.003  # back to the noise level
@@ -422,7 +422,7 @@ def test_cli_bad_inputs(tmp_path, capsys):
 @pytest.mark.parametrize("effect", [None, *EFFECT_NAMES])
 def test_confusion_row(truth, drives, effect):
     rec, _ = synthetic_effect_record(truth, drives, effect, seed=11)
-    res, *_ = diagnose(rec, verbose=False)
+    res, *_ = diagnose(rec, verbose=False, rule="legacy")
     if effect is None:
         assert res["selected"] == []
     else:
@@ -480,9 +480,15 @@ def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
 
 
 def test_nonlocal_memory_not_offered_with_dynamics():
+    from smafl_jax._errors import UserInputError
+
     rec = _preisach_forc_record(0.5, False)  # dt 0.5 s, no branch column: not rate-free (cascade base)
-    res, _, _, _ = diagnose(rec, effects=["nonlocal_memory"], verbose=False)
-    assert all(c["name"] != "nonlocal_memory" for c in res["candidates"]) and res["selected"] == []
+    with pytest.raises(UserInputError, match=r"rate-free records only.*nothing left to test"):
+        diagnose(rec, effects=["nonlocal_memory"], verbose=False)
+    # beside an applicable effect it is dropped with a warning in the result
+    res, _, _, _ = diagnose(rec, effects=["nonlocal_memory", "delay"], max_candidates=1, refit=False, verbose=False)
+    assert all(c["name"] != "nonlocal_memory" for c in res["candidates"])
+    assert any("nonlocal_memory" in w and "rate-free" in w for w in res["warnings"])
 
 
 def test_split_coverage_flags_an_untrained_branch():
@@ -500,3 +506,107 @@ def test_split_coverage_flags_an_untrained_branch():
     rec2 = sj.Record.from_arrays(t, u2, np.tanh((u2 - 50) / 10), input_name="temperature_C", output_name="length")
     cov2 = split_coverage(make_split(rec2))
     assert cov2["covered_fraction"] > 0.95 and "warning" not in cov2
+
+
+# -- calibrated selection (issue 13) ----------------------------------------------------
+
+
+def test_ar_fit_recovers_ar2_and_stays_stable(rng):
+    """AR coefficients of a numpy-loop AR(2) are recovered; a random walk is shrunk to a stationary null model."""
+    from smafl_jax._diagnose import _ar_fit, _ar_simulate
+
+    n, a1, a2 = 20000, 0.6, 0.3
+    eta = rng.standard_normal(n)
+    x = np.zeros(n)
+    for k in range(2, n):
+        x[k] = a1 * x[k - 1] + a2 * x[k - 2] + eta[k]
+    coef, innov, mu, rho = _ar_fit(x, 10)
+    assert coef.size >= 2 and abs(coef[0] - a1) < 0.05 and abs(coef[1] - a2) < 0.05 and np.all(np.abs(coef[2:]) < 0.05)
+    assert abs(np.std(innov) - 1.0) < 0.05
+    path = _ar_simulate(coef, innov, mu, rho, n, np.random.default_rng(1))
+    r1 = np.corrcoef(path[:-1], path[1:])[0, 1]
+    assert abs(r1 - a1 / (1 - a2)) < 0.03  # lag-1 autocorrelation of the AR(2)
+    walk = np.cumsum(rng.standard_normal(3000))
+    coef, innov, mu, rho = _ar_fit(walk, 5)
+    assert rho <= 0.995 + 1e-12
+    assert np.all(np.isfinite(_ar_simulate(coef, innov, mu, rho, 3000, np.random.default_rng(2))))
+
+
+def test_fold_splits_partition_the_record():
+    from smafl_jax._data import Record
+    from smafl_jax._diagnose import fold_splits
+
+    t = np.arange(300) * 0.5
+    rec = Record.from_arrays(t, np.abs(np.sin(t / 7)), np.sin(t / 5), input_name="voltage_V", output_name="displacement_mm")
+    folds = fold_splits(rec, 3)
+    held = np.stack([f.test[0].mask for f in folds])
+    assert np.array_equal(held.sum(axis=0), np.ones(300))  # every sample held out exactly once
+    for f in folds:
+        assert np.array_equal(f.train[0].mask, ~f.test[0].mask) and f.test[0].u.size == 300  # run from t = 0
+        idx = np.flatnonzero(f.test[0].mask)
+        assert np.all(np.diff(idx) == 1)  # contiguous block
+    br = np.repeat(np.arange(7), 5)
+    rec_b = Record.from_arrays(
+        np.arange(br.size) * 10.0, np.tile(np.linspace(0, 1, 5), 7), np.zeros(br.size), extra={"branch": br}
+    )
+    assert [f.test_labels for f in fold_splits(rec_b)] == [[3, 6], [1, 4], [2, 5]]
+
+
+def _eupi_accumulation_record(truth, drives, c, seed, noise=0.003):
+    """Temperature-input record (EUPI base: every fit is a least-squares solve) with strain accumulation c."""
+    from smafl_jax._data import Record
+
+    eupi = truth.hysteresis
+    u = np.concatenate([np.asarray(drives[k][1], float) for k in ("main_loop", "minor_loop")])
+    m = ExtendedModel(eupi, (StrainAccumulation(c=jnp.asarray(c)),))
+    y = np.asarray(sj.simulate(m, u, 0.5)) + noise * np.random.default_rng(seed).standard_normal(u.size)
+    return Record.from_arrays(np.arange(u.size) * 0.5, u, y, input_name="temperature_C", output_name="displacement_mm")
+
+
+def test_calibrated_rule_accepts_a_real_effect_and_reports_folds_and_nulls(truth, drives, tmp_path):
+    from smafl_jax._report import write_diagnosis
+
+    rec = _eupi_accumulation_record(truth, drives, 0.15, seed=21)
+    res, base, ext, split = diagnose(rec, effects=["strain_accumulation"], refit=False, verbose=False, n_null=6, seed=3)
+    assert res["selected"] == ["strain_accumulation"]
+    cal = res["candidates"][0]["calibration"]
+    assert cal["accepted"] and all(cal["gates"].values()) and set(cal["gates"]) == {"gain", "max_error", "folds", "null"}
+    assert len(cal["folds"]) == 3 and all(f["gain"] > 0 for f in cal["folds"])
+    nl = cal["null"]
+    assert nl["n_records"] == 6 and len(nl["gains"]) == 6 and nl["fpr"] == 0.01
+    assert cal["gain"] > nl["threshold"] >= max(nl["gains"])
+    assert res["selection"]["rule"] == "calibrated" and res["selection"]["false_positive_rate"] == 0.01
+    # the report: one decision per candidate, no 'nan', the fold gains and null threshold shown
+    write_diagnosis(tmp_path, rec, res, base, ext, split)
+    md = (tmp_path / "report.md").read_text()
+    assert "nan" not in md and "| selected |" in md and "fold gains" in md and "threshold" in md
+
+
+def test_calibrated_rule_rejects_on_a_clean_record(truth, drives):
+    """No effect in the data: even with no minimum gain the gates (max error, folds, null records) select nothing."""
+    rec = _eupi_accumulation_record(truth, drives, 0.0, seed=22)
+    res, *_ = diagnose(rec, effects=["strain_accumulation"], refit=False, verbose=False, min_gain=0.0, n_null=6)
+    assert res["selected"] == [] and res["candidates"][0]["decision"].startswith("rejected: ")
+    assert res["extended"]["heldout_rmse"] == res["base"]["heldout_rmse"]
+
+
+def test_cli_refuses_degenerate_records(tmp_path, capsys):
+    """Constant input, all-negative voltage, nonlocal_memory on a record with dynamics: exit 2, one line, no traceback."""
+    from smafl_jax.cli import main
+
+    t = np.arange(200) * 0.5
+    cases = {
+        "const": ({"voltage_V": np.full(t.size, 3.0), "displacement_mm": np.sin(t / 10)}, [], "is constant"),
+        "neg": ({"voltage_V": -1.0 - np.abs(np.sin(t / 10)), "displacement_mm": np.sin(t / 10)}, [], "<= 0 everywhere"),
+        "nlm": (
+            {"voltage_V": 3 + 3 * np.sin(t / 10), "displacement_mm": np.sin(t / 10)},
+            ["--effects", "nonlocal_memory"],
+            "rate-free records only",
+        ),
+    }
+    for name, (cols, extra, msg) in cases.items():
+        csv = tmp_path / f"{name}.csv"
+        sj.atomic_write_csv(csv, {"time_s": t, **cols})
+        assert main(["diagnose", str(csv), "--out", str(tmp_path / f"o_{name}"), "--quiet", *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert msg in err and len(err.splitlines()) == 1 and "Traceback" not in err

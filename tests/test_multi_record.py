@@ -66,6 +66,10 @@ def test_fit_records_loro_holds_each_record_out():
     assert doc["per_record_train"]["r0"]["rmse"] < 0.8 * folds[0]["model"]["rmse"]
     # the fold held out record 0 also for the baselines: they miss it by the offset too
     assert folds[0]["baselines"]["static_poly"]["rmse"] > 0.8 * c
+    for i, f in enumerate(folds):
+        others = np.concatenate([r.u for j, r in enumerate(recs) if j != i])
+        outside = np.mean((recs[i].u < others.min()) | (recs[i].u > others.max()))
+        assert f["heldout_outside_train_range"] == pytest.approx(outside) and f["train_input_range"][1] == others.max()
     # the headline is the mean over folds
     mean = doc["validation"]["mean"]["model"]
     assert mean["rmse"] == pytest.approx(np.mean([f["model"]["rmse"] for f in folds]))

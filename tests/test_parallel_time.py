@@ -6,6 +6,7 @@ that chunked runs several blocks and segmented many uneven pieces, both with pad
 """
 
 import dataclasses
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -15,7 +16,7 @@ import pytest
 from reference import play_loop, random_reversals, thermal_loop
 
 import smafl_jax as sj
-from smafl_jax._operators import MODEL_METHODS, choose_model_method
+from smafl_jax._operators import MODEL_METHODS, choose_model_method, model_with_method
 
 PARALLEL = ("assoc", "chunked", "segmented")
 ALL = ("auto", "scan", *PARALLEL)
@@ -192,3 +193,27 @@ def test_jitted_vmapped_simulate_shapes_and_one_trace(rng, method):
         expected = np.stack([np.asarray(c.with_method("scan").simulate(x, dt)) for x in u])
         np.testing.assert_allclose(np.asarray(out), expected, rtol=1e-12, atol=1e-12)
     assert eqx.debug.get_num_traces(traced) == 1
+
+
+def test_cli_simulate_method_matches_scan(tmp_path):
+    from smafl_jax.cli import main as cli_main
+
+    root = Path(__file__).resolve().parents[1] / "datasets"
+    outs = {}
+    for method in ("scan", "segmented"):
+        out = tmp_path / f"{method}.csv"
+        assert (
+            cli_main(["simulate", str(root / "truth.json"), str(root / "minor_loop.csv"), "--out", str(out), "--method", method])
+            == 0
+        )
+        outs[method] = np.loadtxt(out, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(outs["segmented"], outs["scan"], rtol=1e-12, atol=1e-13)
+
+
+def test_model_with_method_reaches_nested_parts_and_rejects_models_without_them(rng):
+    lag = sj.JouleLag()
+    assert model_with_method(lag, "assoc").thermal.method == "assoc"
+    c = model_with_method(random_cascade(rng), "chunked")
+    assert (c.thermal.method, c.hysteresis.method) == ("chunked", "chunked")
+    with pytest.raises(ValueError, match="no EUPI or JouleThermal"):
+        model_with_method(sj.Preisach.from_range(0.0, 7.4), "assoc")

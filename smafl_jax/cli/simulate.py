@@ -37,6 +37,13 @@ def add_parser(sub):
         help="put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); "
         "the output CSV is on that grid. Without it irregular sampling is an error",
     )
+    p.add_argument(
+        "--method",
+        choices=("auto", "scan", "assoc", "chunked", "segmented"),
+        default=None,
+        help="evaluation form of the thermal lag and operator bank (default: the model's own, normally scan); "
+        "assoc/chunked/segmented are exact parallel-in-time forms, auto picks by backend and record length",
+    )
     p.set_defaults(func=run)
     return p
 
@@ -44,9 +51,19 @@ def add_parser(sub):
 def run(args):
     from .. import load_model_file, load_record, simulate
     from .._data import parse_resample
-    from .._io import atomic_write_csv
+    from .._io import atomic_write_csv, check_writable_file
 
+    check_writable_file(args.out)  # before the simulation: a bad path fails at once
+    if args.metrics:
+        check_writable_file(args.metrics, "metrics file")
     model, doc = load_model_file(args.params)
+    if args.method is not None:
+        from .._operators import model_with_method
+
+        try:
+            model = model_with_method(model, args.method)
+        except ValueError as exc:
+            raise UserInputError(f"{args.params}: --method {args.method}: {exc}") from None
     data_info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
     in_col = args.input or data_info.get("input_column")
     rec = load_record(args.input_csv, input=in_col, require_output=False, min_samples=2, resample=parse_resample(args.resample))

@@ -66,7 +66,7 @@ def _index_axis(ax, which, values, label):
     getattr(ax, f"set_{which}label")(label)
 
 
-def _progress_printer(n, stream=sys.stderr, every_s=2.0):
+def _progress_printer(n, stream=None, every_s=2.0):
     """``progress(done, total, elapsed)`` callback printing at most every ``every_s`` seconds, with an estimate."""
     last = [-every_s]
 
@@ -78,7 +78,7 @@ def _progress_printer(n, stream=sys.stderr, every_s=2.0):
         print(
             f"  sweep: {done}/{total} configurations, {elapsed:.0f} s elapsed"
             + (f", about {eta:.0f} s left" if done < total else ""),
-            file=stream,
+            file=stream or sys.stderr,
             flush=True,
         )
 

@@ -1,0 +1,123 @@
+"""Issue 18: does the default fit reach the noise floor on records this toolkit did not make?
+
+Records come from tests/indep_plant.py (plain numpy, no smafl_jax code: its own thresholds, tilts,
+initial operator memory, hysteresis on temperature or effective voltage, its own thermal scheme,
+sensor noise and quantisation).  Each record is fitted on its first 70 % with the settings a user
+gets (`fit_record` defaults = `smafl fit REC`) and scored on the last 30 %, which the plant keeps
+inside the trained range.  Figures are RMSE / noise SD (goal: about 1).
+
+    python experiments/base_fit_independent.py [--quick] [--seeds 1 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))
+
+import indep_plant  # noqa: E402
+
+import smafl_jax as sj  # noqa: E402
+from smafl_jax._report_fit import fit_record  # noqa: E402
+
+RESULTS = ROOT / "experiments" / "results"
+
+#: The record kinds of issue 18's table (drive, rate, start, sensor).
+CELLS = {
+    "multisine, cold start, 25 Hz": dict(drive="multisine", rate_hz=25, start="cold"),
+    "PWM, cold start, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold"),
+    "staircase, warm start, 10 Hz": dict(drive="staircase", rate_hz=10, start="warm"),
+    "PWM, length sensor, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold", orientation="length"),
+    "multisine, half-warm start, 10 Hz": dict(drive="multisine", rate_hz=10, start="mid"),
+}
+
+
+def run_cell(name, kw, seed, minutes, variants, tmp):
+    r = indep_plant.make_record(seed, minutes=minutes, **kw)
+    path = tmp / f"rec_{seed}_{kw['drive']}_{kw['start']}_{kw.get('orientation', 'displacement')}.csv"
+    indep_plant.write_csv(path, r)
+    rec = sj.load_record(path)
+    h0, sd = r["heldout_start"], r["noise_sd"]
+    row = {
+        "cell": name,
+        "seed": seed,
+        "n_samples": len(rec),
+        "truth": {
+            "hysteresis_input": r["truth"]["hysteresis"]["input"],
+            "start": r["truth"]["thermal"]["start"],
+            "k1": r["truth"]["thermal"]["k1"],
+        },
+    }
+    for label, opts in variants.items():
+        t0 = time.perf_counter()
+        _, doc, (_, _, yhat) = fit_record(rec, split="time", val_fraction=1 - h0 / len(rec), **opts)
+        th = doc["model"].get("thermal", {})
+        hy = doc["model"].get("hysteresis", doc["model"])
+        row[label] = {
+            "train_x_noise": float(np.sqrt(np.mean((yhat[:h0] - rec.y[:h0]) ** 2)) / sd),
+            "heldout_x_noise": float(np.sqrt(np.mean((yhat[h0:] - rec.y[h0:]) ** 2)) / sd),
+            "seconds": time.perf_counter() - t0,
+            "structure": doc["settings"].get("structure"),
+            "sees": doc["model"].get("sees"),
+            "orientation": hy.get("orientation"),
+            "thermal_init": th.get("init"),
+            "u0": th.get("u0"),
+            "k1": th.get("k1"),
+        }
+        print(f"{name} seed {seed} [{label}]: train {row[label]['train_x_noise']:.2f}x, held-out {row[label]['heldout_x_noise']:.2f}x "
+              f"noise ({row[label]['seconds']:.0f} s)", flush=True)  # fmt: skip
+    return row
+
+
+def markdown(rows, variants, meta):
+    lines = [
+        "# Default fit on independent records (issue 18)",
+        "",
+        f"Command: `{meta['command']}`; {meta['minutes']} min records; held-out RMSE / noise SD (goal about 1x).",
+        "",
+        "| record | seed | truth (hysteresis input, start) | " + " | ".join(f"{v} train | {v} held-out" for v in variants) + " |",
+        "| --- | --- | --- | " + " | ".join("--- | ---" for _ in variants) + " |",
+    ]
+    for r in rows:
+        cells = " | ".join(f"{r[v]['train_x_noise']:.2f}x | {r[v]['heldout_x_noise']:.2f}x" for v in variants)
+        lines.append(f"| {r['cell']} | {r['seed']} | {r['truth']['hysteresis_input']}, {r['truth']['start']} | {cells} |")
+    for v in variants:
+        h = [r[v]["heldout_x_noise"] for r in rows]
+        lines.append("")
+        lines.append(
+            f"- {v}: median held-out {np.median(h):.2f}x noise, worst {np.max(h):.2f}x, within 1.2x: {sum(x <= 1.2 for x in h)}/{len(h)}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[7])
+    ap.add_argument("--minutes", type=float, default=8.0)
+    ap.add_argument("--quick", action="store_true", help="defaults only, 4-minute records")
+    ap.add_argument("--out", default=str(RESULTS / "base_fit_independent"))
+    args = ap.parse_args(argv)
+    minutes = 4.0 if args.quick else args.minutes
+    variants = {"default": {}}
+    if not args.quick:
+        variants["profiled start only"] = {"max_steps": 0}
+    tmp = Path("/tmp/smafl_base_fit_independent")
+    tmp.mkdir(parents=True, exist_ok=True)
+    rows = [run_cell(n, kw, s, minutes, variants, tmp) for s in args.seeds for n, kw in CELLS.items()]
+    cmd = "python experiments/base_fit_independent.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    meta = {"command": cmd.strip(), "minutes": minutes, "seeds": args.seeds}
+    out = Path(args.out)
+    sj.atomic_write_json(out.with_suffix(".json"), {**meta, "rows": rows})
+    sj.atomic_write_text(out.with_suffix(".md"), markdown(rows, variants, meta))
+    print(f"wrote {out.with_suffix('.json')} and {out.with_suffix('.md')}")
+
+
+if __name__ == "__main__":
+    main()
