@@ -7,8 +7,9 @@ EUPI with 24 operators) on a drive of T samples (dt = 0.01 s), with ``method`` =
 ``lax.scan`` step per sample), assoc (``lax.associative_scan`` over the whole record),
 chunked (scan over 1024-sample blocks, associative inside) and segmented (128 pieces of the
 record in lockstep, two passes); all four are exact (tests/test_parallel_time.py).  A second
-workload is the EUPI alone with wide banks (50 and 200 operators) at T = 1e5, where the
-segmented form is meant to pay off.
+workload is what a fit evaluates, the loss and its gradient for all parameters (value_and_grad;
+scan and segmented only), and a third the EUPI alone with wide banks (50 and 200 operators) at
+T = 1e5, where the segmented form is meant to pay off.
 
 Compile: wall time of ``jax.jit(f).lower(u).compile()`` (trace + XLA compile), each method
 once per size.  Run: best wall time of the compiled function, the methods timed round-robin
@@ -75,13 +76,26 @@ def _child(workload, T, methods, repeat):
 
     from smafl_jax._operators import choose_model_method
 
-    model, n_ops = _model(workload)
+    model, n_ops = _model(workload.removesuffix("-grad"))
     u = jnp.asarray(_drive(T))
+    y_target = model.simulate(u, DT) if workload.endswith("-grad") else None
     print(json.dumps({"kind": "auto", "auto": choose_model_method(T, n_ops), "backend": jax.default_backend()}), flush=True)
     compiled, ref = {}, None
     for m in methods:
-        variant = model.with_method(m) if workload == "cascade" else _replace(model, m)
-        f = jax.jit(lambda x, variant=variant: variant.simulate(x, DT))
+        variant = model.with_method(m) if workload.startswith("cascade") else _replace(model, m)
+        if y_target is None:
+            f = jax.jit(lambda x, variant=variant: variant.simulate(x, DT))
+        else:  # what a fit evaluates: loss and gradient with respect to every parameter
+
+            def loss(mod, x):
+                return jnp.mean((mod.simulate(x, DT) - y_target) ** 2)
+
+            def value_and_grad(x, variant=variant, loss=loss):
+                value, g = jax.value_and_grad(loss)(variant, x)
+                # every gradient leaf is returned, so XLA cannot drop any part of the backward pass
+                return jnp.concatenate([value[None], *[jnp.ravel(leaf) for leaf in jax.tree.leaves(g)]])
+
+            f = jax.jit(value_and_grad)
         t0 = time.perf_counter()
         c = f.lower(u).compile()
         t_compile = time.perf_counter() - t0
@@ -136,8 +150,12 @@ def _rows(workload, T, found, note, skipped):
     comp, run = found["compile"], found["run"]
     scan_c = comp.get("scan", {}).get("compile_s")
     scan_r = run.get("scan")
-    label = "Cascade (24 ops)" if workload == "cascade" else f"EUPI ({workload.split(':')[1]} ops)"
+    label = {"cascade": "Cascade (24 ops)", "cascade-grad": "Cascade value+grad"}.get(
+        workload
+    ) or f"EUPI ({workload.split(':')[1]} ops)"
     for m in METHODS:
+        if m not in comp and m not in skipped and workload.endswith("-grad"):
+            continue
         if m in skipped:
             rows.append(row(f"{label} T={T:.0e} {m}", None, scan_r, "s", note=skipped[m], T=T, method=m))
             continue
@@ -196,6 +214,11 @@ def run(quick: bool = False, sizes=None) -> list[dict]:
         rows += _rows("cascade", T, found, note, skipped)
         for m, c in found["compile"].items():  # extrapolate to 10x the length: compile as measured, run x10
             budget[m] = c["compile_s"] + 10 * found["run"].get(m, c["first_run_s"])
+    for T in () if quick else (10_000, 100_000):
+        # the associative forms' gradients compile for minutes on 2 cores and run slower still: scan vs segmented only
+        progress(f"parallel_time: cascade value+grad T={T:.0e}")
+        found, note = _measure("cascade-grad", T, ["scan", "segmented"], 5, CHILD_TIMEOUT_S)
+        rows += _rows("cascade-grad", T, found, note, {})
     for n in () if quick else (50, 200):
         T = 100_000
         progress(f"parallel_time: EUPI {n} operators T={T:.0e}")

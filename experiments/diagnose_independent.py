@@ -9,6 +9,7 @@ experiments/results/diagnose_independent.{json,md}, with the base model's held-o
 level (the misfit every effect has to be found under).
 
 Run:  python experiments/diagnose_independent.py [--seed 0] [--n-null 8] [--truths none creep ...]
+      python experiments/diagnose_independent.py --fpr-check 20 --n-null 8   (false-positive rate on clean records)
 """
 
 from __future__ import annotations
@@ -84,6 +85,42 @@ def _table(rows, key):
     return md, correct
 
 
+def fpr_check(n_records, n_null, fpr, seed=0):
+    """False-positive rate of the calibrated gates alone, measured on clean records where the base model is exact.
+
+    Record: the bundled true EUPI (datasets/truth.json) on a temperature-named input (so the base is the EUPI on
+    the same grid: no misfit), bundled main + minor loop drives, 3 um noise; candidate strain_accumulation (linear:
+    every fit is a least-squares solve), ``min_gain = 0`` so that only the max-error, fold and null gates decide.
+    """
+    import importlib.util
+
+    import numpy as np
+
+    import smafl_jax as sj
+    from smafl_jax._diagnose import diagnose
+    from smafl_jax._effects import ExtendedModel
+
+    spec = importlib.util.spec_from_file_location("gen", ROOT / "datasets" / "generate.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    drives = gen.drives()
+    eupi = sj.load_model(ROOT / "datasets" / "truth.json").hysteresis
+    u = np.concatenate([np.asarray(drives[k][1], float) for k in ("main_loop", "minor_loop")])
+    y0 = np.asarray(sj.simulate(ExtendedModel(eupi, ()), u, 0.5))
+    out = []
+    for k in range(n_records):
+        y = y0 + 0.003 * np.random.default_rng([seed, k]).standard_normal(u.size)
+        rec = sj.Record.from_arrays(np.arange(u.size) * 0.5, u, y, input_name="temperature_C", output_name="displacement_mm")
+        res, *_ = diagnose(
+            rec, effects=["strain_accumulation"], refit=False, verbose=False, min_gain=0.0, n_null=n_null, fpr=fpr, seed=k
+        )
+        c = res["candidates"][0]
+        out.append({"selected": res["selected"], "gates": c.get("calibration", {}).get("gates"), "gain": c.get("heldout_gain")})
+        print(f"fpr check {k}: selected {res['selected'] or 'none'}, gates {out[-1]['gates']}", file=sys.stderr, flush=True)
+    n_fp = sum(bool(r["selected"]) for r in out)
+    return {"n_records": n_records, "false_positives": n_fp, "rate": n_fp / max(n_records, 1), "fpr_nominal": fpr, "rows": out}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
@@ -91,9 +128,17 @@ def main(argv=None) -> int:
     ap.add_argument("--fpr", type=float, default=0.01)
     ap.add_argument("--truths", nargs="*", default=list(ie.TRUTHS))
     ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--fpr-check", type=int, default=0, help="only measure the false-positive rate on N clean records")
     a = ap.parse_args(argv)
     from smafl_jax import atomic_write_json
     from smafl_jax._io import atomic_write_text, to_jsonable
+
+    if a.fpr_check:
+        res = fpr_check(a.fpr_check, a.n_null, a.fpr, a.seed)
+        res["command"] = "python experiments/diagnose_independent.py " + " ".join(argv if argv is not None else sys.argv[1:])
+        atomic_write_json(Path(a.out).with_name("diagnose_fpr_check.json"), to_jsonable(res))
+        print(json.dumps({k: v for k, v in res.items() if k != "rows"}))
+        return 0
 
     out = Path(a.out)
     rows = []

@@ -54,6 +54,8 @@ BASELINES = ("static_poly", "first_order_lag")
 TITLES = {"static_poly": "static polynomial (order 3)", "first_order_lag": "first-order lag + polynomial (free run)"}
 ORDER = 3
 LAG_GRID = 41
+#: A held-out RMSE ratio model / baseline above this is called "practically a tie" in the verdicts.
+TIE_RATIO = 0.95
 
 
 def is_voltage(input_name: str | None, units: dict | None = None) -> bool:
@@ -275,6 +277,7 @@ def compare_sentences(model_heldout: dict | None, baselines_heldout: dict) -> li
             worse_er = model_heldout["e_r_percent"] > b["e_r_percent"]
             out.append(
                 f"the model beats baseline {k} on held-out RMSE: {nums}"
+                + ("; by less than 5 %: practically a tie" if ratio > TIE_RATIO else "")
                 + ("; its max error (e_r) is larger, though" if worse_er else "")
             )
     return out

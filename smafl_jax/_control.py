@@ -120,6 +120,11 @@ class IICompensator(eqx.Module):
             return self.model.hysteresis
         return self.model
 
+    def to_forward_input(self, u):
+        """Voltage -> the forward model's input: V^2 for the hysteresis of a cascade that sees heat."""
+        squares = self.hysteresis_only and isinstance(self.model, Cascade) and self.model.sees == "heat"
+        return u * u if squares else u
+
 
 class ClosedLoop(eqx.Module):
     """One closed-loop configuration: plant, controller, reference and sensor model (a PyTree)."""
@@ -220,7 +225,7 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
     comp = loop.compensator
     if comp is not None:
         H = comp.forward_model
-        cstate, yhat0 = _rest(H, loop.u_init, dt)
+        cstate, yhat0 = _rest(H, comp.to_forward_input(_f64(loop.u_init)), dt)
         u20 = jnp.clip(_f64(loop.u_init), pid.umin, pid.umax)
     else:
         cstate, yhat0, u20 = (), jnp.zeros(()), jnp.zeros(())
@@ -242,7 +247,7 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
             # the integrator must climb the forward model's slope: flip for a falling (length) output
             slope = float(_parts(comp.forward_model)[1].orientation)
             u2 = jnp.clip(u2 + dt * comp.K * slope * (r_k - yhat), pid.umin, pid.umax)
-            cst, yhat = plant_step(H, cst, u2, dt)
+            cst, yhat = plant_step(H, cst, comp.to_forward_input(u2), dt)
         p_term = pid.kp * e
         deriv = (pid.tf * deriv - pid.kd * (ym - ym_prev)) / (pid.tf + dt)
         integ_try = integ + pid.ki * dt * e

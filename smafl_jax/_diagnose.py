@@ -905,7 +905,8 @@ def calibration_gates(
     1. ``gain``: held-out RMSE gain on the main split >= ``min_gain``;
     2. ``max_error``: held-out max |error| (the numerator of e_r) not raised;
     3. ``folds``: on each of K contiguous blocks held out in turn (branch records: the three branch residues),
-       both models refitted from their fitted values, the gain is positive in all folds or all but one;
+       both models refitted (linear gains re-profiled), the gain is positive in all folds or all but one, and the
+       mean fold gain is positive;
     4. ``null``: the gain exceeds the (1 - fpr) quantile of the gains the same effect reaches on ``n_null``
        null records simulated from ``current`` with its own residual structure (`null_records`), each refitted
        exactly like the real record (current: warm start; effect: its grid of starts); the quantile is a normal
@@ -950,10 +951,13 @@ def calibration_gates(
     n_pos = sum(f["gain"] > 0 for f in folds)
     out["folds"] = folds
     out["folds_positive"] = f"{n_pos}/{len(folds)}"
-    out["gates"]["folds"] = bool(len(folds) >= 2 and n_pos >= len(folds) - 1)
+    mean_fold = float(np.mean([f["gain"] for f in folds])) if folds else 0.0
+    out["mean_fold_gain"] = mean_fold
+    # all (or all but one) folds positive, and the one exception must not outweigh the others (mean gain > 0)
+    out["gates"]["folds"] = bool(len(folds) >= 2 and n_pos >= len(folds) - 1 and mean_fold > 0)
     _log(f"  {name}: fold gains {[round(f['gain'], 3) for f in folds]} ({time.time() - t0:.1f} s)", verbose)
     if not out["gates"]["folds"]:
-        out["reason"] = f"held-out gain positive in only {n_pos} of {len(folds)} folds"
+        out["reason"] = f"held-out gain positive in {n_pos} of {len(folds)} folds, mean fold gain {100 * mean_fold:+.1f} %"
         return out
     t0 = time.time()
     recs, info = null_records(record, split, current, n_null, rng, max_order)
@@ -1094,7 +1098,7 @@ def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
         "rule": "calibrated",
         "description": (
             f"accepted when (1) the held-out RMSE gain >= {100 * min_gain:g} %, (2) the held-out max |error| is not "
-            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds "
+            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds (and on average) "
             f"({cal['n_folds']} contiguous time blocks, or the 3 branch residues), both models refitted per fold, and "
             f"(4) the gain exceeds the (1 - fpr) quantile (normal approximation) and the maximum of the gains the same "
             f"effect reaches on {cal['n_null']} null records (the fitted model without it plus an AR fit of its own "

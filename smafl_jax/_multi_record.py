@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._baselines import BASELINES, baselines_doc, baselines_markdown, compare_sentences, is_voltage
+from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._errors import UserInputError
 from ._metrics import metrics
@@ -211,7 +211,8 @@ def loro_sentences(folds: list[dict]) -> list[str]:
             f"mean RMSE {mm['rmse']:.4g} vs {mb['rmse']:.4g}, mean e_r {mm['e_r_percent']:.3g} % vs {mb['e_r_percent']:.3g} %"
         )
         if mm["rmse"] < mb["rmse"] and wins > n / 2:
-            out.append(f"the model beats baseline {k} on held-out records: {nums}")
+            tie = "; by less than 5 % on the median record: practically a tie" if np.median(ratios) > TIE_RATIO else ""
+            out.append(f"the model beats baseline {k} on held-out records: {nums}{tie}")
         else:
             out.append(f"the model does not beat baseline {k} ({BASELINE_TITLES[k]}) on held-out data: {nums}")
     return out

@@ -47,14 +47,17 @@ _ACCELERATORS = ("gpu", "cuda", "rocm", "tpu")
 
 
 def choose_model_method(T: int, n: int, backend: str | None = None) -> str:
-    """Evaluation form for a model forward pass of ``T`` samples and ``n`` operators (or state entries).
+    """Evaluation form for a model of ``T`` samples and ``n`` operators (or state entries) on ``backend``.
 
-    CPU (measured, benchmarks/bench_parallel_time.py on 2 shared cores): the sequential
-    ``scan`` was the fastest form to run for every record length and bank size tried, and
-    the cheapest to compile, so CPU always gets ``scan``.  Accelerators (NOT measured in this
-    repository; from the H100 figures of issue 15: ~12 us per scan step, ``assoc`` 8.8 ms at
-    T = 1e6, ``assoc`` compile 3 min at T = 1e7): ``scan`` for tiny records, ``assoc`` up to
-    2^20 samples, ``chunked`` (compile time independent of T) beyond.
+    CPU: ``scan``.  Measured (benchmarks/bench_parallel_time.py, 2 shared cores, truth cascade of
+    24 operators): ``assoc`` and ``chunked`` run 4-25x slower than scan and compile in 8-22 s
+    (scan: ~1 s); ``segmented`` runs the forward pass 1.2-2.2x faster than scan for T = 1e4..1e7
+    (and 2x at 50 operators), but its loss-and-gradient (what fit and sample evaluate) is 0.8-0.9x
+    scan at T = 1e5..1e6 and compiles 2-3x longer, so it is not the default; ask for it
+    explicitly for repeated forward passes of long records.
+    Accelerators (NOT measured in this repository; from the H100 figures of issue 15: ~12 us per
+    scan step, ``assoc`` 8.8 ms at T = 1e6, ``assoc`` compile 3 min at T = 1e7): ``scan`` for tiny
+    records, ``assoc`` up to 2^20 samples, ``chunked`` (compile time independent of T) beyond.
     """
     b = jax.default_backend() if backend is None else str(backend).lower()
     if b in _ACCELERATORS:

@@ -56,7 +56,7 @@ def thermal_reference(th, u, dt):
 def cascade_reference(c, u, dt):
     theta = thermal_reference(c.thermal, u, dt)
     u_eff = np.sqrt(np.maximum(theta, 0.0) * float(c.thermal.k1) / float(c.thermal.k2))
-    return eupi_reference(c.hysteresis, u_eff)
+    return eupi_reference(c.hysteresis, u_eff if c.sees == "voltage" else u_eff**2)
 
 
 # ---------------------------------------------------------------- models
@@ -74,8 +74,8 @@ def random_thermal(rng, init="steady", method="scan"):
     return sj.JouleThermal(k1=rng.uniform(0.05, 0.5), k2=rng.uniform(0.02, 0.1), init=init, u0=u0, method=method)
 
 
-def random_cascade(rng, method="scan", thermal_init="steady", init="descended"):
-    return sj.Cascade(random_thermal(rng, thermal_init, method), random_eupi(rng, init, 1, method))
+def random_cascade(rng, method="scan", thermal_init="steady", init="descended", sees="voltage"):
+    return sj.Cascade(random_thermal(rng, thermal_init, method), random_eupi(rng, init, 1, method), sees=sees)
 
 
 def scale(y):
@@ -104,18 +104,20 @@ def test_every_method_matches_scan_and_numpy(rng, method):
         # affine maps re-associate products and sums: agreement to rounding, not bit for bit
         np.testing.assert_allclose(got, scan, rtol=1e-13, atol=1e-14 * scale(scan), err_msg=init)
         np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-14 * scale(ref), err_msg=init)
-    for thermal_init, init in (("steady", "descended"), ("ambient", "zero"), ("given", "consistent")):
-        c = random_cascade(rng, "scan", thermal_init, init)
+    cases = (("steady", "descended", "voltage"), ("ambient", "zero", "heat"), ("given", "consistent", "voltage"))
+    for thermal_init, init, sees in cases:
+        c = random_cascade(rng, "scan", thermal_init, init, sees)
         ref = cascade_reference(c, u, DT)
         scan = np.asarray(c.simulate(u, DT))
         got = np.asarray(c.with_method(method).simulate(u, DT))
-        assert np.max(np.abs(got - scan)) <= 1e-12 * scale(scan), ("Cascade", thermal_init, init)
-        assert np.max(np.abs(got - ref)) <= 1e-11 * scale(ref), ("Cascade", thermal_init, init)
+        assert np.max(np.abs(got - scan)) <= 1e-12 * scale(scan), ("Cascade", thermal_init, init, sees)
+        assert np.max(np.abs(got - ref)) <= 1e-11 * scale(ref), ("Cascade", thermal_init, init, sees)
 
 
 def test_with_method_switches_both_parts_and_keeps_parameters(rng):
-    c = random_cascade(rng, "scan", "given")
+    c = random_cascade(rng, "scan", "given", sees="heat")
     d = c.with_method("chunked")
+    assert d.sees == "heat"
     assert (d.thermal.method, d.hysteresis.method) == ("chunked", "chunked")
     for a, b in zip(jax.tree.leaves(c), jax.tree.leaves(d)):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

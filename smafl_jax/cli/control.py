@@ -9,15 +9,28 @@ import numpy as np
 
 from .._errors import UserInputError
 
-DEFAULT_MODEL = "datasets/truth.json"
+#: The bundled true cascade, found beside the package (``<repo>/datasets/truth.json``), not relative to the working
+#: folder, so the default works from any folder with a source checkout or an editable install (``pip install -e .``).
+DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "datasets" / "truth.json"
+
+
+def _default_model() -> str:
+    """The bundled model's path; a clear error when the package was installed without the repository's datasets/."""
+    if not DEFAULT_MODEL.is_file():
+        raise UserInputError(
+            f"no --model given and the bundled default {DEFAULT_MODEL} is missing (an install without the repository's "
+            "datasets/ folder): pass --model MODEL.json or a fit.json"
+        )
+    return str(DEFAULT_MODEL)
 
 
 def add_loop_arguments(p):
     """Options shared by `smafl control` and `smafl sweep`."""
     p.add_argument(
         "--model",
-        default=DEFAULT_MODEL,
-        help=f"identified model used by the I-I compensator (model file or fit.json; default {DEFAULT_MODEL})",
+        default=None,
+        help="identified model used by the I-I compensator (model file or fit.json; default: the bundled "
+        "datasets/truth.json of this installation, found from any working folder)",
     )
     p.add_argument("--plant", default=None, help="model simulated as the plant (default: the --model itself, i.e. no mismatch)")
     p.add_argument(
@@ -133,6 +146,8 @@ def build_loop(args):
 
     for name in POSITIVE_OPTIONS + NONNEGATIVE_OPTIONS:
         check_option(name, getattr(args, name))
+    if args.model is None:
+        args.model = _default_model()
     model, _ = load_model_file(args.model)
     plant = load_model_file(args.plant)[0] if args.plant else model
     ref = load_reference(args.reference, args.dt, args.duration)
