@@ -69,6 +69,11 @@ def add_parser(sub):
         help="does the output rise or fall when the actuator contracts (length sensors fall); default: screened",
     )
     p.add_argument(
+        "--no-refit",
+        action="store_true",
+        help="one record: save the model fitted on the training samples instead of refitting the chosen structure on the whole record",
+    )
+    p.add_argument(
         "--sees",
         choices=("auto", "voltage", "heat"),
         default="auto",
@@ -136,6 +141,7 @@ def run(args):
         orientation=args.orientation,
         thermal_start=args.thermal_start,
         sees=args.sees,
+        refit=not args.no_refit,
         grid=grid,
         progress=True,
     )
