@@ -111,9 +111,23 @@ def main(argv=None):
     ap.add_argument("--out", default=str(RESULTS / "base_fit_independent"))
     args = ap.parse_args(argv)
     minutes = 4.0 if args.quick else args.minutes
-    variants = {"default": {}}
+    variants = {
+        "default": {},
+        # what `smafl fit` did before this issue: static EUPI, fixed grid, output assumed rising, no refit
+        "previous default (EUPI)": dict(model="eupi", thresholds=False, tilts=False, orientation="rises", refit=False),
+        # the paper's cascade with the old start rule (at rest with the first input) and no screening
+        "paper cascade, steady start": dict(
+            model="cascade",
+            thresholds=False,
+            tilts=False,
+            orientation="rises",
+            sees="voltage",
+            thermal_start="steady",
+            refit=False,
+        ),
+    }
     if not args.quick:
-        variants["profiled start only"] = {"max_steps": 0}
+        variants["default, profiled start only"] = {"max_steps": 0}
     tmp = Path("/tmp/smafl_base_fit_independent")
     tmp.mkdir(parents=True, exist_ok=True)
     rows = [run_cell(n, kw, s, minutes, variants, tmp) for s in args.seeds for n, kw in CELLS.items()]

@@ -190,7 +190,7 @@ def main(argv=None) -> int:
     ]
     for r in rows:
         c = r["case"]
-        dec = "; ".join(f"{x['name']}: {x['decision']}" for x in r["candidates"])
+        dec = "; ".join(f"{x['name']}: {x['decision']}" for x in r["candidates"]).replace("|", "\\|")  # markdown cell
         en = "" if c.get("effect_over_noise") is None else f"{c['effect_over_noise']:.1f}"
         lines.append(
             f"| {r['truth']} | {c.get('effect_variant', '')} | {c['n']} | {en} | {r['base_heldout_over_noise']:.1f} | "

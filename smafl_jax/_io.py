@@ -97,6 +97,9 @@ def model_to_dict(model):
             out[f.name] = model_to_dict(val)
         elif isinstance(val, (tuple, list)) and val and all(isinstance(v, eqx.Module) for v in val):
             out[f.name] = [model_to_dict(v) for v in val]
+        elif hasattr(val, "shape") and np.size(val) == 0 and np.ndim(val) > 1:
+            # an empty (0, k) array would come back from JSON as shape (0,): keep its shape
+            out[f.name] = {"shape": list(np.shape(val)), "values": []}
         else:
             out[f.name] = to_jsonable(val)
     return out
@@ -146,6 +149,8 @@ def model_from_dict(d, *, where="model"):
             if val is None:
                 kwargs[key] = None
                 continue
+            if isinstance(val, dict) and set(val) == {"shape", "values"} and not val["values"]:
+                val = np.zeros(tuple(int(n) for n in val["shape"]))
             arr = np.asarray(val, dtype=np.float64)
             if not np.all(np.isfinite(arr)):
                 raise UserInputError(f"{where}.{key}: non-finite value in saved parameters")

@@ -21,7 +21,7 @@ from smafl_jax._control import plant_init, plant_step
 from smafl_jax._fit import _bvls
 
 sys.path.insert(0, str(Path(__file__).parent))
-import indep_plant  # noqa: E402
+import indep_plant
 
 
 def _trained_eupi(rng, orientation=1):
@@ -104,3 +104,12 @@ def test_screening_finds_the_sensor_orientation_on_independent_records(orientati
     assert model.hysteresis.orientation == sign
     assert {row["orientation"] for row in table} == {1, -1}
     assert model.thermal.init == "given"
+
+
+def test_eupi_without_unparallel_operators_saves_and_loads():
+    m = sj.EUPI.from_range(0.0, 7.4, n_alpha=0, n_asym=0)
+    import json
+
+    back = sj.model_from_dict(json.loads(json.dumps(sj.model_to_dict(m))))
+    assert back.w.shape == (0, 0)
+    np.testing.assert_allclose(np.asarray(back.simulate(np.linspace(0, 7, 20))), np.asarray(m.simulate(np.linspace(0, 7, 20))))
