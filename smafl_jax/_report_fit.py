@@ -248,6 +248,12 @@ def _refit_whole(record, structure, chosen, grid, thermal_start, refinement, sol
     """The split fit's structure choices, refitted on every sample of the record."""
     if progress:
         print("refitting the chosen structure on the whole record", file=sys.stderr)
+    ones = [np.ones(len(record))]
+    if refinement == "kept" and max_steps > 0:
+        # warm start from the split's refined model: the whole-record optimum is close, LM needs few steps
+        spec = default_trainable(chosen, thresholds=thresholds, tilts=tilts)
+        res = fit(chosen, record, solver=solver, trainable=spec, init=None, weights=ones, max_steps=max_steps, progress=progress)
+        return res.model
     e = chosen if isinstance(chosen, EUPI) else chosen.hysteresis
     ones = [np.ones(len(record))]
     start, _, _ = screen_start(
@@ -259,11 +265,7 @@ def _refit_whole(record, structure, chosen, grid, thermal_start, refinement, sol
         sees=getattr(chosen, "sees", "auto"),
         progress=progress,
     )
-    if refinement != "kept" or max_steps == 0:
-        return start
-    res = fit(start, record, solver=solver, trainable=default_trainable(start, thresholds=thresholds, tilts=tilts),
-              init=None, weights=ones, max_steps=max_steps, progress=progress)  # fmt: skip
-    return res.model
+    return start
 
 
 # -- report ---------------------------------------------------------------------------
