@@ -57,7 +57,12 @@ class Cascade(eqx.Module):
         """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``drive`` (hysteresis input), ``y``."""
         theta = self.thermal.simulate(u, dt)
         drive = self.drive_of(theta)
-        return {"theta": theta, "u_eff": self.thermal.effective_voltage(theta), "drive": drive, "y": self.hysteresis.simulate(drive)}
+        return {
+            "theta": theta,
+            "u_eff": self.thermal.effective_voltage(theta),
+            "drive": drive,
+            "y": self.hysteresis.simulate(drive),
+        }
 
     def simulate(self, u, dt):
         """Displacement for voltage record ``u`` sampled every ``dt`` seconds."""
