@@ -130,20 +130,7 @@ def run(args):
     out = prepare_out_dir(args.out or f"fit_{Path(rec.path).stem}")
     print(f"fitting {args.model} to {rec.path} ({len(rec)} samples, {rec.input_name} -> {rec.output_name})", file=sys.stderr)
     model, doc, masks = fit_record(
-        rec,
-        model=args.model,
-        split=args.split,
-        val_fraction=args.val_fraction,
-        solver=args.solver,
-        max_steps=args.max_steps,
-        thresholds=args.thresholds,
-        tilts=args.tilts,
-        orientation=args.orientation,
-        thermal_start=args.thermal_start,
-        sees=args.sees,
-        refit=not args.no_refit,
-        grid=grid,
-        progress=True,
+        rec, split=args.split, val_fraction=args.val_fraction, refit=not args.no_refit, **_model_options(args, grid)
     )
     import math
 
@@ -162,6 +149,22 @@ def run(args):
     _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
     return 0
+
+
+def _model_options(args, grid):
+    """The fit options one-record and several-record fits share."""
+    return dict(
+        model=args.model,
+        solver=args.solver,
+        max_steps=args.max_steps,
+        thresholds=args.thresholds,
+        tilts=args.tilts,
+        orientation=args.orientation,
+        thermal_start=args.thermal_start,
+        sees=args.sees,
+        grid=grid,
+        progress=True,
+    )
 
 
 def _print_extras(doc):
@@ -185,20 +188,7 @@ def _run_records(args, records, grid):
         f"{records[0].input_name} -> {records[0].output_name})",
         file=sys.stderr,
     )
-    model, doc, details = fit_records(
-        records,
-        model=args.model,
-        split="none" if args.split == "none" else "auto",
-        solver=args.solver,
-        max_steps=args.max_steps,
-        thresholds=args.thresholds,
-        tilts=args.tilts,
-        orientation=args.orientation,
-        thermal_start=args.thermal_start,
-        sees=args.sees,
-        grid=grid,
-        progress=True,
-    )
+    model, doc, details = fit_records(records, split="none" if args.split == "none" else "auto", **_model_options(args, grid))
     if args.split not in ("auto", "none"):
         print(
             f"note: --split {args.split} applies to one record; several records are validated leave-one-record-out",
