@@ -409,7 +409,7 @@ def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True,
 
 # -- stage 2: joint refinement -------------------------------------------------------
 
-SOLVERS = ("lm", "gauss_newton", "bfgs", "lbfgsb", "projected_gradient")
+from ._choices import SOLVERS  # noqa: E402  (defined there so `smafl fit --help` stays light)
 
 
 def _residuals(model, args):

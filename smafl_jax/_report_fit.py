@@ -29,7 +29,7 @@ from ._thermal import JouleThermal
 
 __all__ = ["MODELS", "build_model", "fit_record", "write_fit_outputs", "versions"]
 
-MODELS = ("auto", "eupi", "cascade", "joule")
+from ._choices import MODELS
 
 K2_NOTE = (
     "k2 is not identified by a cascade fit: the hysteresis sees sqrt(theta k1/k2) and theta is "

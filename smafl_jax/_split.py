@@ -25,7 +25,8 @@ from ._errors import UserInputError
 
 __all__ = ["split_masks", "SPLITS"]
 
-SPLITS = ("auto", "time", "branch", "none")
+from ._choices import SPLITS
+
 BRANCH_EVERY = 3
 BRANCH_POSITION = 2
 

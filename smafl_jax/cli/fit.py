@@ -12,9 +12,7 @@ from pathlib import Path
 
 
 def add_parser(sub):
-    from .._fit import SOLVERS
-    from .._report_fit import MODELS
-    from .._split import SPLITS
+    from .._choices import MODELS, SOLVERS, SPLITS
 
     p = sub.add_parser("fit", help="fit a model to a record: fit.json, report.md and figures")
     p.add_argument(
