@@ -376,3 +376,42 @@ def test_heartbeat_reports_elapsed_time_while_a_phase_runs():
     with heartbeat("x", every_s=0.01, enabled=False, stream=quiet):
         time.sleep(0.05)
     assert quiet.getvalue() == ""
+
+
+def _interrupt_when(cmd, marker, timeout=120):
+    """Run ``cmd``, send SIGINT once ``marker`` appears on stderr (the command is then busy); return (rc, stderr after)."""
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=ENV, preexec_fn=_default_sigint)
+    seen = b""
+    try:
+        while marker.encode() not in seen:
+            ch = proc.stderr.read(1)  # byte by byte: progress bars end lines with \r, not \n
+            if not ch:
+                break
+            seen += ch
+        proc.send_signal(signal.SIGINT)
+        rest = proc.stderr.read().decode(errors="replace")
+        proc.wait(timeout=timeout)
+    finally:
+        proc.kill()
+    return proc.returncode, seen.decode(errors="replace"), rest
+
+
+@pytest.mark.parametrize("command", ["fit", "sample"])
+def test_ctrl_c_during_fit_and_sample_exits_130_and_leaves_nothing_half_written(tmp_path, command):
+    out = tmp_path / f"{command}_out"
+    if command == "fit":
+        cmd = [sys.executable, "-m", "smafl_jax", "fit", str(DATASETS / "steps.csv"), "--out", str(out), "--no-figures"]
+        marker = "start candidate"  # inside the start screening
+    else:
+        cmd = [sys.executable, "-m", "smafl_jax", "sample", str(RECORD), "--fit", str(TRUTH), "--out", str(out)]
+        cmd += ["--steps", "100000"]
+        marker = "sampling"  # the chain is starting or running
+    rc, before, rest = _interrupt_when(cmd, marker)
+    assert marker in before, before
+    assert rc == 130, rest
+    assert "Traceback" not in rest and rest.strip().endswith(f"smafl {command}: interrupted"), rest
+    # no temporary files anywhere, and a fit writes nothing at all before it has a model
+    leftovers = [p.name for p in tmp_path.rglob("*") if ".tmp" in p.name]
+    assert not leftovers, leftovers
+    if command == "fit":
+        assert not out.exists() or not any(out.iterdir())
