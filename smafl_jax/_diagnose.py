@@ -1517,59 +1517,11 @@ def _effect_params_all(model, names):
     return {n: _effect_params(model.get(n)) for n in names}
 
 
-def _directions(u, span, window=5, threshold=0.002):
-    """Per sample: +1 rising, -1 falling, 0 holding (slope of a short moving average vs ``threshold`` x span per sample)."""
-    u = np.asarray(u, float)
-    if u.size < 2:
-        return np.zeros(u.size, int)
-    w = min(window, u.size)
-    smooth = np.convolve(u, np.ones(w) / w, mode="same")
-    d = np.gradient(smooth)
-    return np.where(d > threshold * span, 1, np.where(d < -threshold * span, -1, 0))
-
-
 def split_coverage(split, tol=0.02, warn_below=0.9):
-    """How much of the held-out part the training part has seen: input level AND direction (rising/falling/holding).
+    """How much of the held-out part the training part has seen (input level and direction); see `data.split.coverage`."""
+    from .data.split import coverage
 
-    A held-out sample counts as covered when the training part visits an input
-    within ``tol`` x the input span while moving the same way.  Hysteresis
-    branches are direction-specific, so a held-out block on a branch never
-    trained (e.g. the cooling step of a single heat-hold-cool record) measures
-    extrapolation, not prediction; the report says so when the covered
-    fraction is below ``warn_below``.
-    """
-    span = float(np.ptp(np.concatenate([s.u for s in split.train + split.test]))) or 1.0
-    seen = {}
-    for s in split.train:
-        d = _directions(s.u, span)
-        for k in (-1, 0, 1):
-            seen.setdefault(k, []).append(np.asarray(s.u, float)[(d == k) & s.mask])
-    seen = {k: np.sort(np.concatenate(v)) for k, v in seen.items()}
-    names = {-1: "falling", 0: "holding", 1: "rising"}
-    counts = {n: [0, 0] for n in names.values()}
-    for s in split.test:
-        d = _directions(s.u, span)
-        for x, k in zip(np.asarray(s.u, float)[s.mask], d[s.mask]):
-            lv = seen[k]
-            i = np.searchsorted(lv, x)
-            near = min(abs(lv[j] - x) for j in (i - 1, i) if 0 <= j < lv.size) if lv.size else np.inf
-            counts[names[k]][0] += int(near <= tol * span)
-            counts[names[k]][1] += 1
-    total = sum(c[1] for c in counts.values())
-    frac = sum(c[0] for c in counts.values()) / total if total else 1.0
-    out = {
-        "covered_fraction": float(frac),
-        "tolerance_of_span": tol,
-        "by_direction": {n: {"heldout_samples": c[1], "covered": (c[0] / c[1] if c[1] else None)} for n, c in counts.items()},
-    }
-    if frac < warn_below:
-        worst = min((n for n in counts if counts[n][1]), key=lambda n: counts[n][0] / counts[n][1])
-        out["warning"] = (
-            f"only {100 * frac:.0f} % of the held-out samples lie on input levels the training part visits in the same "
-            f"direction ({worst} samples least: {100 * counts[worst][0] / counts[worst][1]:.0f} %); the held-out errors "
-            "measure extrapolation to an untrained branch, not prediction"
-        )
-    return out
+    return coverage(split, tol=tol, warn_below=warn_below)
 
 
 def resid_after(model, split, resid):
