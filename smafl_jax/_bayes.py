@@ -7,10 +7,14 @@ stated on the physical values, elementwise, and can be overridden from JSON.
 
 Linear gains (``linear=``):
 
-- ``"sample"``: every trainable leaf (thermal k1 and all EUPI gains) is sampled.
+The trainable leaves come from `smafl_jax.default_trainable`, i.e. from the hysteresis
+protocol (`smafl_jax._hysteresis`): a hysteresis model's grids and spans (EUPI thresholds,
+Preisach levels) are never sampled; its weights are its `linear_fields`.
+
+- ``"sample"``: every trainable leaf (thermal k1 and all hysteresis weights) is sampled.
   Exact for the model as written (gains >= 0 respected), but the dimension is
   ~30 for the default EUPI and the ensemble sampler mixes slowly.
-- ``"marginalise"`` (recommended when the EUPI has many gains): only the
+- ``"marginalise"`` (recommended when the hysteresis has many weights): only the
   nonlinear parameters (k1, noise scale, grids if trained) are sampled; the
   gains get a Gaussian prior ``N(0, tau^2)`` and are integrated out in closed
   form (Gaussian noise only).  Exact for *unbounded* gains; the positivity of
@@ -43,8 +47,8 @@ from . import _config  # noqa: F401
 from ._cascade import Cascade
 from ._constraints import constrain, log_jacobian, positive, unconstrain
 from ._errors import UserInputError
-from ._eupi import EUPI
 from ._fit import as_fit_data, default_trainable
+from ._hysteresis import hysteresis_of
 from ._simulate import simulate
 from ._thermal import JouleThermal
 
@@ -55,6 +59,7 @@ __all__ = [
     "ChainTooShortWarning",
     "default_priors",
     "check_model_supported",
+    "linear_modes",
     "resolve_walkers",
     "load_priors",
     "run_sampler",
@@ -191,9 +196,12 @@ def default_priors(names, data):
 
     k1: lognormal around the paper's 0.05 1/s, sd 2 in log (time constants ~0.4 s..1000 s
     at 95 %); k2: lognormal around the value that maps ``max U^2`` to the output range, sd 3;
-    EUPI gains: half-normal with scale 2x the output range; polynomial and offset: normal(0,
-    10x range); thresholds and tilts (if trained): lognormal around their grid scale;
-    noise scale: half-normal with the output's range as scale.
+    hysteresis weights that are >= 0 (EUPI gain, v, w; Preisach relay weights w): half-normal with
+    scale 2x the output range; polynomial, offset and other free weights: normal(0, 10x range);
+    thresholds and tilts (if trained): lognormal around their grid scale; fitted operator memory
+    logits: normal(0, 4); noise scale: half-normal
+    with the output's range as scale.  Names are matched on their last two parts, so a thermal
+    ``k1`` nested in an extended model (``base.thermal.k1``) gets the k1 prior.
     """
     yr, umax = _data_scale(data)
     table = {
@@ -207,8 +215,11 @@ def default_priors(names, data):
     out = {}
     for name in names:
         leaf = name.split(".")[-1]
+        tail = ".".join(name.split(".")[-2:])
         if name in table:
             out[name] = table[name]
+        elif tail in table:
+            out[name] = table[tail]
         elif leaf in ("gain", "v", "w"):
             out[name] = Prior("halfnormal", scale=2.0 * yr)
         elif leaf in ("poly", "offset"):
@@ -217,6 +228,8 @@ def default_priors(names, data):
             out[name] = Prior("lognormal", math.log(0.25), 1.0)
         elif leaf == "alpha":
             out[name] = Prior("lognormal", 0.0, 1.0)
+        elif leaf == "memory":  # logit of a fitted operator start (EUPI init="fitted"): keeps walkers off +-inf
+            out[name] = Prior("normal", 0.0, 4.0)
         else:
             out[name] = Prior("flat")
     return out
@@ -247,24 +260,6 @@ def _element_names(name, shape):
     return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
 
 
-def _eupi_of(model):
-    if isinstance(model, EUPI):
-        return model
-    return getattr(model, "hysteresis", None)
-
-
-def _hysteresis_input(model, u, dt):
-    if isinstance(model, EUPI):
-        return u
-    if hasattr(model, "hysteresis_input"):
-        return model.hysteresis_input(u, dt)
-    return model.thermal.effective_voltage(model.thermal.simulate(u, dt))
-
-
-def _replace_eupi(model, eupi):
-    return eupi if isinstance(model, EUPI) else eqx.tree_at(lambda m: m.hysteresis, model, eupi)
-
-
 def _ridge_lstsq(A, y, ridge):
     """``argmin |A w - y|^2 + |ridge * w|^2`` by SVD (stays finite for duplicate operator columns)."""
     Aa = jnp.concatenate([A, jnp.diag(ridge)], axis=0)
@@ -273,12 +268,21 @@ def _ridge_lstsq(A, y, ridge):
 
 
 def check_model_supported(model, where="model"):
-    """`UserInputError` for models the posterior cannot handle (a diagnose `ExtendedModel` and its effects)."""
-    if type(model).__name__ == "ExtendedModel":
-        raise UserInputError(
-            f"{where}: holds an ExtendedModel (base model + effects, written by `smafl diagnose`), which sampling "
-            "does not support; sample its base model instead (base_fit.json beside it, or a fit.json from `smafl fit`)"
-        )
+    """`UserInputError` for models the posterior cannot handle: anything without a ``simulate(u, dt)``.
+
+    Every saved model qualifies: a hysteresis model (EUPI, Preisach), a cascade, the Joule lag and a
+    diagnose `ExtendedModel` (its effect parameters are sampled with the rest).
+    """
+    if not callable(getattr(model, "simulate", None)):
+        raise UserInputError(f"{where}: holds a {type(model).__name__}, which has no simulate(u, dt) to condition on data")
+
+
+def linear_modes(model):
+    """The ``linear=`` modes `Posterior` accepts for ``model``: all three when its output is linear in
+    its hysteresis weights (see `smafl_jax._hysteresis`), else only ``"sample"``."""
+    if hysteresis_of(model) is not None and getattr(model, "linear_in_weights", False):
+        return LINEAR_MODES
+    return ("sample",)
 
 
 def resolve_walkers(ndim, n_walkers=None):
@@ -329,17 +333,18 @@ class Posterior:
         self.data = as_fit_data(data, dt)
         self.noise, self.nu, self.linear, self.prior_only = noise, float(nu), linear, bool(prior_only)
         spec = default_trainable(model) if trainable is None else trainable
-        eupi = _eupi_of(model)
         if linear != "sample":
-            if eupi is None:
-                raise UserInputError(f"linear={linear!r} needs a model with an EUPI part, got {type(model).__name__}")
+            if linear not in linear_modes(model):
+                raise UserInputError(
+                    f"linear={linear!r} needs a model whose output is linear in its hysteresis weights, got "
+                    f"{type(model).__name__}{' with output-side effects' if hysteresis_of(model) is not None else ''}"
+                )
             if linear == "marginalise" and noise != "gaussian":
                 raise UserInputError(
                     "marginalising the gains is exact only for Gaussian noise; use noise='gaussian' or linear='profile'"
                 )
-            get = (lambda m: m) if isinstance(model, EUPI) else (lambda m: m.hysteresis)
-            fields = ["gain", "v", "w", "poly", "offset"]
-            spec = eqx.tree_at(lambda s: [getattr(get(s), f) for f in fields], spec, [False] * len(fields))
+            fields = hysteresis_of(model).linear_fields()
+            spec = eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fields], spec, [False] * len(fields))
         yr, _ = _data_scale(self.data)
         self.gain_scale = float(10.0 * yr if gain_scale is None else gain_scale)
         self.model = model
@@ -379,6 +384,11 @@ class Posterior:
             linear=linear,
             prior_only=bool(prior_only),
         )
+        if linear != "sample" and not jax.tree_util.tree_leaves(raw_train):
+            # nothing but the noise is sampled (e.g. a Preisach or a bare EUPI): the design of the weights is
+            # the same at every point, so it and its Gram matrix are computed once, not per walker and step
+            A, y, c = _fixed_design(self._d, model)
+            self._d = dataclasses.replace(self._d, design=(A, y, c, A.T @ A, A.T @ y))
 
     @property
     def n_traces(self):
@@ -447,6 +457,7 @@ class _Density(eqx.Module):
     nu: float = eqx.field(static=True)
     linear: str = eqx.field(static=True)
     prior_only: bool = eqx.field(static=True)
+    design: tuple | None = None  # (A, y, c, A'A, A'y) when it does not depend on the sampled parameters
 
     def unravel(self, theta):
         parts, i = [], 0
@@ -473,8 +484,7 @@ class _Density(eqx.Module):
         return n * c - n * jnp.log(sigma) - 0.5 * (nu + 1) * jnp.sum(jnp.log1p((r / sigma) ** 2 / nu))
 
     def _design(self, model):
-        eupi = _eupi_of(model)
-        A = jnp.concatenate([eupi.features(_hysteresis_input(model, u, d)) for u, _, d in self.args])
+        A = jnp.concatenate([model.features(u, d) for u, _, d in self.args])
         y = jnp.concatenate([y for _, y, _ in self.args])
         # column scaling (exact: prior sd scaled alike) keeps the normal equations well conditioned
         c = jnp.maximum(jnp.sqrt(jnp.mean(A * A, axis=0)), 1e-12)
@@ -482,10 +492,14 @@ class _Density(eqx.Module):
 
     def _gain_system(self, model, sigma):
         """Normal equations of the gains' conditional Gaussian (scaled coordinates)."""
-        A, y, c = self._design(model)
+        if self.design is None:
+            A, y, c = self._design(model)
+            AtA, Aty = A.T @ A, A.T @ y
+        else:
+            A, y, c, AtA, Aty = self.design
         tau = self.gain_scale * c
-        M = A.T @ A / sigma**2 + jnp.diag(1.0 / tau**2)
-        b = A.T @ y / sigma**2
+        M = AtA / sigma**2 + jnp.diag(1.0 / tau**2)
+        b = Aty / sigma**2
         return A, y, c, tau, M, b
 
     def log_prob(self, theta):
@@ -527,13 +541,18 @@ class _Density(eqx.Module):
                 mean = jax.scipy.linalg.cho_solve((L, True), b)
                 z = jax.random.normal(k1, mean.shape)
                 mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
-            model = _replace_eupi(model, _eupi_of(model).with_linear_weights(mean / c))
+            model = model.with_hysteresis(model.hysteresis.with_linear_weights(mean / c))
         f = model.simulate(u, dt)
         e = jax.random.normal(k2, f.shape) if self.noise == "gaussian" else jax.random.t(k2, self.nu, f.shape)
         return f, f + sigma * e
 
 
 _TRACES = [0]
+
+
+@eqx.filter_jit
+def _fixed_design(density, model):
+    return density._design(model)
 
 
 @jax.jit
@@ -826,13 +845,13 @@ def derived_quantities(posterior, phys):
     """Thermal time constant ``1/k1`` and steady-state gain ``k2/k1`` (when k2 is identified)."""
     names = posterior.names
     out = {}
-    k1n = next((n for n in ("thermal.k1", "k1") if n in names), None)
-    k2n = next((n for n in ("thermal.k2", "k2") if n in names), None)
+    k1n = next((n for n in names if n in ("thermal.k1", "k1") or n.endswith(".thermal.k1")), None)
+    k2n = next((n for n in names if n in ("thermal.k2", "k2") or n.endswith(".thermal.k2")), None)
     if k1n:
         out["time_constant_s"] = _stats(1.0 / phys[:, names.index(k1n)])
     if k1n and k2n:
         out["steady_state_gain"] = _stats(phys[:, names.index(k2n)] / phys[:, names.index(k1n)])
-    elif isinstance(posterior.model, Cascade):
+    elif isinstance(posterior.model, Cascade) or isinstance(getattr(posterior.model, "base", None), Cascade):
         out["steady_state_gain"] = {
             "identified": False,
             "note": "k2 does not affect the cascade's displacement (it cancels in "

@@ -1,4 +1,4 @@
-"""Cascade actuator model: voltage -> Joule heat -> thermal state -> EUPI -> displacement.
+"""Cascade actuator model: voltage -> Joule heat -> thermal state -> hysteresis (EUPI by default) -> displacement.
 
 Documented choice of what the hysteresis sees (PAPER.md): the EUPI acts on the
 *effective quasi-static voltage* ``u_eff = sqrt(theta k1 / k2)``, the constant
@@ -16,11 +16,13 @@ not on ``k2``.  ``k2`` only has meaning for the Joule model fitted alone
 from __future__ import annotations
 
 import dataclasses
+from typing import ClassVar
 
 import equinox as eqx
 
 from . import _config  # noqa: F401
 from ._eupi import EUPI
+from ._hysteresis import AbstractHysteresis
 from ._io import register_model
 from ._thermal import JouleThermal
 
@@ -31,10 +33,13 @@ SEES = ("voltage", "heat")
 
 @register_model
 class Cascade(eqx.Module):
-    """Thermal model followed by EUPI hysteresis."""
+    """Thermal model followed by a hysteresis model (`AbstractHysteresis`: EUPI, Preisach)."""
+
+    #: The output is ``features(u, dt) @ hysteresis.linear_weights()``.
+    linear_in_weights: ClassVar[bool] = True
 
     thermal: JouleThermal
-    hysteresis: EUPI
+    hysteresis: AbstractHysteresis
     # What the hysteresis acts on: "voltage" = the effective voltage sqrt(theta k1/k2) (the paper's
     # voltage-domain EUPI); "heat" = theta k1/k2 = u_eff^2 (V^2), i.e. the temperature rise, where the
     # phase transformation of an SMA really happens. Play operators are not invariant under the square,
@@ -52,6 +57,18 @@ class Cascade(eqx.Module):
 
     def hysteresis_input(self, u, dt):
         return self.drive_of(self.thermal.simulate(u, dt))
+
+    def steady_drive(self, u):
+        """Hysteresis input once a constant voltage ``u`` has been held (``u``, or ``u^2`` for ``sees="heat"``)."""
+        return u if self.sees == "voltage" else u * u
+
+    def features(self, u, dt):
+        """Design matrix of the hysteresis weights: ``simulate(u, dt) = features(u, dt) @ hysteresis.linear_weights()``."""
+        return self.hysteresis.features(self.hysteresis_input(u, dt))
+
+    def with_hysteresis(self, h: AbstractHysteresis) -> Cascade:
+        """Copy with the hysteresis part replaced."""
+        return eqx.tree_at(lambda m: m.hysteresis, self, h)
 
     def states(self, u, dt):
         """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``drive`` (hysteresis input), ``y``."""
@@ -73,7 +90,7 @@ class Cascade(eqx.Module):
         return dataclasses.replace(
             self,
             thermal=dataclasses.replace(self.thermal, method=method),
-            hysteresis=dataclasses.replace(self.hysteresis, method=method),
+            hysteresis=self.hysteresis.with_method(method),
         )
 
     @classmethod

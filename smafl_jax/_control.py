@@ -28,8 +28,8 @@ The compensator is an integral loop around the *identified forward model* H
 ``du2/dt = K (y_d - H[u2])``, forward Euler ``u2(k) = clip(u2(k-1) + dt K (y_d(k) - yhat(k-1)))``
 then ``yhat(k) = H[u2](k)``; ``u2`` is clipped to ``[umin, umax]`` too (its own
 anti-windup: an unreachable reference cannot wind it up).  Choice of H
-(documented): by default the identified *static EUPI hysteresis* (the
-``hysteresis`` part of a cascade), as in the paper ("based on the accurate
+(documented): by default the identified *static hysteresis* (the
+``hysteresis`` part of a cascade: EUPI, or any `smafl_jax._hysteresis` model), as in the paper ("based on the accurate
 hysteresis model"); then ``u2`` converges to the quasi-static inverse voltage
 and the PID handles the thermal lag.  ``hysteresis_only=False`` puts the whole
 identified cascade (thermal lag included) inside the integral loop, which with
@@ -47,8 +47,7 @@ import numpy as np
 
 from . import _config  # noqa: F401
 from ._cascade import Cascade
-from ._eupi import EUPI
-from ._operators import consistent_initial_state, play_step
+from ._hysteresis import AbstractHysteresis
 from ._thermal import thermal_step
 
 __all__ = [
@@ -103,7 +102,7 @@ class PID(eqx.Module):
 class IICompensator(eqx.Module):
     """Integral-inverse compensator ``du2/dt = K (y_d - H[u2])`` around an identified forward model."""
 
-    model: Any  # Cascade or EUPI: the identified model (may differ from the plant)
+    model: Any  # Cascade or hysteresis model (EUPI, Preisach): the identified model (may differ from the plant)
     K: jnp.ndarray
     hysteresis_only: bool = eqx.field(static=True, default=True)
 
@@ -115,15 +114,12 @@ class IICompensator(eqx.Module):
 
     @property
     def forward_model(self):
-        """The H the integral loop runs on (static EUPI by default, see module docstring)."""
-        if self.hysteresis_only and isinstance(self.model, Cascade):
-            return self.model.hysteresis
-        return self.model
+        """The H the integral loop runs on (static hysteresis by default, see module docstring)."""
+        return self.model.hysteresis if self.hysteresis_only else self.model
 
     def to_forward_input(self, u):
-        """Voltage -> the forward model's input: V^2 for the hysteresis of a cascade that sees heat."""
-        squares = self.hysteresis_only and isinstance(self.model, Cascade) and self.model.sees == "heat"
-        return u * u if squares else u
+        """Voltage -> the forward model's input: the steady hysteresis input (V^2 for a cascade that sees heat)."""
+        return self.model.steady_drive(u) if self.hysteresis_only else u
 
 
 class ClosedLoop(eqx.Module):
@@ -154,57 +150,45 @@ class ClosedLoop(eqx.Module):
 
 
 def _parts(model):
+    """``(thermal or None, hysteresis)``: the per-sample plants are a hysteresis model and a `Cascade`."""
+    if isinstance(model, AbstractHysteresis):
+        return None, model
     if isinstance(model, Cascade):
         return model.thermal, model.hysteresis
-    if isinstance(model, EUPI):
-        return None, model
     raise TypeError(
-        f"closed-loop plant / compensator model must be a Cascade (thermal + EUPI) or an EUPI, got {type(model).__name__}"
+        "closed-loop plant / compensator model must be a Cascade (thermal + hysteresis) or a hysteresis model "
+        f"(EUPI, Preisach), got {type(model).__name__}"
     )
 
 
 def plant_init(model, u_init):
-    """State before the first sample: ``(theta, operators, fresh)`` for a plant resting at ``u_init``.
+    """State before the first sample: ``(theta, hysteresis state, fresh)`` for a plant resting at ``u_init``.
 
     ``theta(-1) = g u_init^2`` when the thermal init is ``"steady"``, else 0.  The
-    operator bank is initialised lazily at the first sample (``fresh``) with the
-    EUPI's own ``init`` rule applied to that sample's (effective) input, exactly as
-    `Cascade.simulate` / `EUPI.simulate` do.
+    hysteresis state is initialised lazily at the first sample (``fresh``) by the
+    model's own ``initial_state`` rule applied to that sample's (effective) input,
+    exactly as `Cascade.simulate` / the hysteresis model's ``simulate`` do.
     """
     thermal, hyst = _parts(model)
-    r, _ = hyst._bank()
     u_init = _f64(u_init)
     theta = thermal.initial_state(u_init) if thermal is not None else jnp.zeros_like(u_init)
-    return theta, jnp.zeros_like(r), jnp.asarray(True)
+    placeholder = jax.tree.map(jnp.zeros_like, hyst.initial_state(hyst.u_ref))  # replaced at the first sample
+    return theta, placeholder, jnp.asarray(True)
 
 
 def plant_step(model, state, u, dt):
-    """One sample of the cascade: ``(state, U(k)) -> (state, y(k))`` (thermal ZOH step, play step, linear read-out)."""
-    theta, ops, fresh = state
+    """One sample of the plant: ``(state, U(k)) -> (state, y(k))`` (thermal ZOH step, then the hysteresis ``step``)."""
+    theta, hstate, fresh = state
     thermal, hyst = _parts(model)
     if thermal is not None:
         a = jnp.exp(-thermal.k1 * dt)
         theta, _ = thermal_step(theta, u, a, thermal.gain)
-        u_eff = model.drive_of(theta)
+        x = model.drive_of(theta)
     else:
-        u_eff = u
-    s = hyst.normalise(u_eff)
-    r, al = hyst._bank()
-    if hyst.init == "descended":
-        ops0 = al * (s + r)
-    elif hyst.init == "consistent":
-        ops0 = consistent_initial_state(s, r, al)
-    else:
-        ops0 = jnp.zeros_like(r)
-    ops = jnp.where(fresh, ops0, ops)
-    ops, _ = play_step(ops, s, r, al)
-    n_poly = np.shape(hyst.poly)[0]
-    sign = float(hyst.orientation)  # a length sensor reads the operator sum with a minus sign
-    row = jnp.concatenate(
-        [sign * s[None], sign * ops, jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0], jnp.ones(1)]
-    )
-    y = row @ hyst.linear_weights()
-    return (theta, ops, jnp.asarray(False)), y
+        x = u
+    hstate = jax.tree.map(lambda first, kept: jnp.where(fresh, first, kept), hyst.initial_state(x), hstate)
+    hstate, y = hyst.step(hstate, x)
+    return (theta, hstate, jnp.asarray(False)), y
 
 
 def _rest(model, u_init, dt):
@@ -245,7 +229,7 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
         e = r_k - ym
         if comp is not None:
             # the integrator must climb the forward model's slope: flip for a falling (length) output
-            slope = float(_parts(comp.forward_model)[1].orientation)
+            slope = float(comp.forward_model.hysteresis.orientation)
             u2 = jnp.clip(u2 + dt * comp.K * slope * (r_k - yhat), pid.umin, pid.umax)
             cst, yhat = plant_step(H, cst, comp.to_forward_input(u2), dt)
         p_term = pid.kp * e

@@ -79,7 +79,10 @@ from ._effects import (
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._metrics import metrics
+from ._padding import padded_call
 from ._preisach import Preisach, cv_fit_preisach
+from ._progress import LOGGER as PROGRESS
+from ._progress import Steps
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
 from ._thermal import JouleThermal
 
@@ -256,19 +259,27 @@ def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
 
 
 @eqx.filter_jit
-def _sim(model, u, dt, load):
+def _sim_jit(model, u, load, dt):
     # load=None is static here; models without a load input (Preisach) take (u, dt)
     return model.simulate(u, dt) if load is None else model.simulate(u, dt, load=load)
 
 
-@eqx.filter_jit
+# The records' branches and blocks have many lengths: inputs are padded to a few lengths (`_padding`),
+# so that they share compilations (causal models: the padded samples are dropped, the rest is unchanged).
+def _sim(model, u, dt, load):
+    return padded_call(_sim_jit, model, (u, load), dt)
+
+
+_features_jit = eqx.filter_jit(lambda model, u, dt: model.features(u, dt))
+_accumulation_jit = eqx.filter_jit(lambda model, u, dt: model.accumulation_column(u, dt))
+
+
 def _features(model, u, dt):
-    return model.features(u, dt)
+    return padded_call(_features_jit, model, (u,), dt)
 
 
-@eqx.filter_jit
 def _accumulation(model, u, dt):
-    return model.accumulation_column(u, dt)
+    return padded_call(_accumulation_jit, model, (u,), dt)
 
 
 def simulate_segment(model, seg):
@@ -286,16 +297,8 @@ def score(model, segs):
 
 
 def trainable_spec(model):
-    """Train thermal k1, EUPI gains and effect parameters; keep grids, k2 and load references fixed."""
-    spec = jax.tree_util.tree_map(eqx.is_inexact_array, model)
-    h = lambda m: m.hysteresis if not isinstance(m.base, EUPI) else m.base
-    spec = eqx.tree_at(lambda s: [getattr(h(s), f) for f in ("u_ref", "u_span", "r_sym", "r_asym", "alpha")], spec, [False] * 5)
-    if isinstance(model.base, Cascade):
-        spec = eqx.tree_at(lambda s: s.base.thermal.k2, spec, False)
-    for i, e in enumerate(model.effects):
-        if isinstance(e, LoadDependence):
-            spec = eqx.tree_at(lambda s: (s.effects[i].load_ref, s.effects[i].load_scale), spec, (False, False))
-    return spec
+    """Train thermal k1, hysteresis weights and effect parameters; keep grids, k2 and load references fixed."""
+    return model.trainable_spec()
 
 
 def n_parameters(model):
@@ -864,7 +867,7 @@ def _fit_on(name, start, split, record, *, new):
     """
     if name == NONLOCAL_MEMORY["name"]:
         u = np.asarray(record.u, float)
-        return cv_fit_preisach(split.train, float(u.min()), float(u.max()))[0]
+        return cv_fit_preisach(split.train, float(u.min()), float(u.max()), progress=False)[0]
     if isinstance(start, Preisach):
         return start
     if new:
@@ -931,6 +934,7 @@ def calibration_gates(
     t0 = time.time()
     folds = []
     splits = fold_cache.setdefault("splits", fold_splits(record, n_folds))
+    steps = Steps(f"{name}: fold test", len(splits), unit="folds")
     for j, fs in enumerate(splits):
         key = (id(current), j)
         if key not in fold_cache:
@@ -948,6 +952,7 @@ def calibration_gates(
                 "max_abs_error_after": c["max_abs_error"],
             }
         )
+        steps.advance()
     n_pos = sum(f["gain"] > 0 for f in folds)
     out["folds"] = folds
     out["folds_positive"] = f"{n_pos}/{len(folds)}"
@@ -962,12 +967,14 @@ def calibration_gates(
     t0 = time.time()
     recs, info = null_records(record, split, current, n_null, rng, max_order)
     null_gains = []
+    steps = Steps(f"{name}: null records", len(recs), unit="records")
     for r in recs:
         ns = make_split(r, holdout_residue=holdout_residue)
         cm = _fit_on(None, current, ns, r, new=False)
         nm = _fit_on(name, cm, ns, r, new=True)
         b, c = _held(cm, ns), _held(nm, ns)
         null_gains.append(1.0 - c["rmse"] / b["rmse"] if b["rmse"] > 0 else 0.0)
+        steps.advance()
     g = np.asarray(null_gains)
     z = float(stats.norm.ppf(1.0 - fpr))
     q = float(g.mean() + z * g.std(ddof=1)) if g.size > 1 else float(g.max())
@@ -1023,10 +1030,13 @@ def _select_calibrated(record, split, base, base_te, candidates, fitted, *, min_
         verbose=verbose,
     )
     fitted_c = sorted((c for c in candidates if c.get("fitted")), key=lambda c: c["heldout_rmse"])
+    steps = Steps("diagnose: calibrated test", len(fitted_c), unit="effects")
     for c in fitted_c:
+        PROGRESS.info(f"  diagnose: testing {c['name']}")
         m = fitted[c["name"]][0]
         c["calibration"] = calibration_gates(record, split, base, base_te, c["name"], m, _held(m, split), rng=rng, **kw)
         c["accepted"] = c["calibration"]["accepted"]
+        steps.advance(note=f"{c['name']}: {'accepted' if c['accepted'] else 'rejected'}")
     accepted = [c for c in fitted_c if c["accepted"]]
     if not accepted:
         return [], base, []
@@ -1248,6 +1258,7 @@ def diagnose(
     base_h = base_te["rmse"]
     candidates = []
     fitted = {}
+    steps = Steps("diagnose: fitting candidate effects", len(to_fit) + int(offer_preisach), unit="effects")
     for name in ranked:
         entry = {"name": name, "evidence": evidence[name], "plausible": name in plausible, "fitted": name in to_fit}
         if name in to_fit:
@@ -1270,9 +1281,11 @@ def diagnose(
             entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
             entry["legacy_accepted"] = entry["accepted"]
             fitted[name] = (m, te["rmse"], ic)
+            steps.advance(note=name)
         candidates.append(entry)
     if offer_preisach:
         entry, pm = _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose)
+        steps.advance(note=entry["name"])
         entry["legacy_accepted"] = entry["accepted"]
         candidates.append(entry)
         fitted[entry["name"]] = pm
@@ -1474,6 +1487,7 @@ def refit_whole_record(record, base, ext, result, verbose=True):
     here).  Returns ``(base_all, ext_all, info)``.
     """
     t0 = time.time()
+    PROGRESS.info("  diagnose: refitting the chosen structure on the whole record")
     full = whole_record_split(record)
     base_all = fit_extended(base if isinstance(base, ExtendedModel) else ExtendedModel(base, ()), [], full)[0].base
     preisach_cv = None

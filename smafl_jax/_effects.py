@@ -1,7 +1,11 @@
 """Catalogue of physical effects that extend the base cascade (issue 6).
 
 `ExtendedModel(base, effects)` composes a base model (a `Cascade`, or a bare
-`EUPI` for rate-free records and non-voltage inputs) with effect modules.  Each
+hysteresis model, `EUPI` or `Preisach`, for rate-free records and non-voltage
+inputs) with effect modules.  It reaches the hysteresis only through the
+`smafl_jax._hysteresis.AbstractHysteresis` protocol (``features`` on a
+transformed input, ``linear_weights``); ``rate_dependence`` scales thresholds
+per sample and so needs a model with ``scalable_thresholds`` (the EUPI).  Each
 effect is an `equinox.Module` registered for JSON, so an extended model saves,
 loads and runs with ``smafl simulate`` like any other model.  The pipeline is
 
@@ -43,14 +47,12 @@ from typing import ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from . import _config  # noqa: F401
 from ._cascade import Cascade
 from ._constraints import positive
-from ._eupi import EUPI
+from ._hysteresis import AbstractHysteresis, hysteresis_of
 from ._io import register_model
-from ._operators import consistent_initial_state
 from ._thermal import _safe_sqrt
 
 __all__ = [
@@ -350,38 +352,18 @@ def _lowpass(x, dt, tau):
     return z
 
 
-def _eupi_operators(eupi, s, rscale=None):
-    """EUPI operator bank on normalised input ``s``; thresholds optionally scaled per sample."""
-    if rscale is None:
-        return eupi.operators(s * eupi.u_span + eupi.u_ref)
-    r, a = eupi._bank()
-    if eupi.init == "descended":
-        y0 = a * (s[0] + r * rscale[0])
-    elif eupi.init == "consistent":
-        y0 = consistent_initial_state(s[0], r * rscale[0], a)
-    else:
-        y0 = jnp.zeros_like(r)
-
-    def step(carry, xs):
-        sk, fk = xs
-        rk = r * fk
-        y = jnp.maximum(sk - rk, jnp.minimum(a * (sk + rk), carry))
-        return y, y
-
-    _, ys = jax.lax.scan(step, y0, (s, rscale))
-    return ys
-
-
 @register_model
 class ExtendedModel(eqx.Module):
-    """Base model (`Cascade` or `EUPI`) composed with catalogue effects; fitted jointly."""
+    """Base model (`Cascade` or a hysteresis model) composed with catalogue effects; fitted jointly."""
 
     base: eqx.Module
     effects: tuple = ()
 
     def __check_init__(self):
-        if not isinstance(self.base, (Cascade, EUPI)):
-            raise ValueError(f"ExtendedModel base must be a Cascade or an EUPI, got {type(self.base).__name__}")
+        if isinstance(self.base, ExtendedModel) or hysteresis_of(self.base) is None:
+            raise ValueError(
+                f"ExtendedModel base must be a Cascade or a hysteresis model (EUPI, Preisach), got {type(self.base).__name__}"
+            )
         names = [getattr(e, "name", None) for e in self.effects]
         for e, n in zip(self.effects, names):
             if n not in EFFECTS or not isinstance(e, EFFECTS[n]):
@@ -391,11 +373,26 @@ class ExtendedModel(eqx.Module):
         for e in self.effects:
             if "thermal" in e.needs and not isinstance(self.base, Cascade):
                 raise ValueError(f"effect {e.name!r} acts on the thermal model and needs a Cascade base")
+            if e.name == "rate_dependence" and not self.hysteresis.scalable_thresholds:
+                raise ValueError(
+                    f"effect 'rate_dependence' scales play thresholds per sample; {type(self.hysteresis).__name__} has none"
+                )
 
     # -- structure -------------------------------------------------------
     @property
-    def hysteresis(self):
-        return self.base if isinstance(self.base, EUPI) else self.base.hysteresis
+    def hysteresis(self) -> AbstractHysteresis:
+        return self.base.hysteresis
+
+    @property
+    def thermal(self):
+        """The base cascade's thermal model (AttributeError for a bare hysteresis base)."""
+        return self.base.thermal
+
+    @property
+    def linear_in_weights(self) -> bool:
+        """True when ``simulate(u, dt) == features(u, dt) @ hysteresis.linear_weights()`` (no load given):
+        no output saturation and no strain accumulation."""
+        return self.get("output_saturation") is None and self.get("strain_accumulation") is None
 
     @property
     def effect_names(self):
@@ -407,10 +404,26 @@ class ExtendedModel(eqx.Module):
                 return e
         return None
 
-    def with_hysteresis(self, eupi):
-        if isinstance(self.base, EUPI):
-            return eqx.tree_at(lambda m: m.base, self, eupi)
-        return eqx.tree_at(lambda m: m.base.hysteresis, self, eupi)
+    def with_hysteresis(self, h):
+        """Copy with the hysteresis part replaced."""
+        return eqx.tree_at(lambda m: m.base, self, self.base.with_hysteresis(h))
+
+    def trainable_spec(self, *, load: bool = True):
+        """Bool PyTree: thermal k1, hysteresis weights and effect parameters train; grids, k2 and load references stay.
+
+        ``load=False`` (no load signal, e.g. `smafl_jax.fit` or sampling on a record): the load effect then
+        does nothing, so its gains are held too.
+        """
+        spec = jax.tree_util.tree_map(eqx.is_inexact_array, self)
+        fixed = self.hysteresis.fixed_fields()
+        spec = eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fixed], spec, [False] * len(fixed))
+        if isinstance(self.base, Cascade):
+            spec = eqx.tree_at(lambda s: s.base.thermal.k2, spec, False)
+        for i, e in enumerate(self.effects):
+            if e.name == "load_dependence":
+                held = ("load_ref", "load_scale") if load else ("a", "b", "load_ref", "load_scale")
+                spec = eqx.tree_at(lambda s: [getattr(s.effects[i], f) for f in held], spec, [False] * len(held))
+        return spec
 
     # -- pipeline --------------------------------------------------------
     def _q_ref(self):
@@ -450,7 +463,7 @@ class ExtendedModel(eqx.Module):
         return q
 
     def hysteresis_input(self, u, dt):
-        """Signal the EUPI sees (after delay, sensor lag, thermal model and drift)."""
+        """Signal the hysteresis sees (after delay, sensor lag, thermal model and drift)."""
         u = jnp.asarray(u, dtype=jnp.float64)
         dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
         d = self.get("delay")
@@ -476,23 +489,20 @@ class ExtendedModel(eqx.Module):
         return out
 
     def features(self, u, dt):
-        """Design matrix of the EUPI gains after rate dependence and creep (linear in the gains)."""
+        """Design matrix of the hysteresis weights after input warp, rate dependence and creep (linear in the weights)."""
         dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
-        eupi = self.hysteresis
+        h = self.hysteresis
         x = self.hysteresis_input(u, dt)
-        s = eupi.normalise(x)
         iw = self.get("input_warp")
         if iw is not None:
-            s = warp_input(s, iw.c, iw.b)
+            x = h.denormalise(warp_input(h.normalise(x), iw.c, iw.b))
         rd = self.get("rate_dependence")
         if rd is None:
-            ops = _eupi_operators(eupi, s)
+            F = h.features(x)
         else:
+            s = h.normalise(x)
             rate = jnp.abs(jnp.diff(s, prepend=s[:1])) / dt * RATE_TIME
-            ops = _eupi_operators(eupi, s, 1.0 + rd.c * rate)
-        npoly = np.shape(eupi.poly)[0]
-        powers = jnp.stack([s ** (m + 2) for m in range(npoly)], axis=-1).reshape(s.shape[0], npoly)
-        F = jnp.concatenate([s[:, None], ops, powers, jnp.ones_like(s)[:, None]], axis=1)
+            F = h.features(x, threshold_scale=1.0 + rd.c * rate)
         cr = self.get("creep")
         if cr is not None:
             F = F + cr.g * (_lowpass(F, dt, cr.tau) - F)

@@ -24,7 +24,10 @@ its upper bound at the first input, the state an actuator is left in after the
 previous cycle came down to the starting input, so periodic loops between 0 and
 a maximum close on themselves as in the paper's figures; ``"zero"`` starts all
 operators at 0 (``F(-1) = 0``, a virgin actuator); ``"consistent"`` is the state
-reached when the first input is approached from 0.
+reached when the first input is approached from 0; ``"fitted"`` places each
+operator at a trained position between its two bounds at the first input
+(``memory``: one logit per operator, 0 = midway, large = descended, very
+negative = ascended), for records that start on an unknown branch.
 
 Grid rule (`EUPI.from_range`): ``n`` thresholds ``r_i = i / (2 n)``,
 i = 1..n, i.e. from ``span/(2n)`` to half the input span (an operator of
@@ -34,18 +37,26 @@ geometrically spaced in [0.4, 2.5] (both sides of the symmetric tilt 1).
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Collection
+from typing import ClassVar
+
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from . import _config  # noqa: F401
 from ._constraints import parameter, positive
+from ._hysteresis import AbstractHysteresis
 from ._io import register_model
-from ._operators import MODEL_METHODS, consistent_initial_state, play, play_weighted
+from ._operators import MODEL_METHODS, consistent_initial_state, play, play_step, play_weighted
 
 __all__ = ["EUPI", "threshold_grid", "tilt_grid"]
 
-_INITS = ("descended", "zero", "consistent")
+_INITS = ("descended", "zero", "consistent", "fitted")
+#: Start logit of a fitted memory: sigmoid(5) = 0.993 of the way to the descended state, with a gradient left.
+DESCENDED_LOGIT = 5.0
 
 
 def threshold_grid(n):
@@ -65,8 +76,15 @@ def tilt_grid(n, lo=0.4, hi=2.5):
 
 
 @register_model
-class EUPI(eqx.Module):
-    """EUPI hysteresis model (eq. 2) as a PyTree; call `simulate(u)` for the output."""
+class EUPI(AbstractHysteresis):
+    """EUPI hysteresis model (eq. 2) as a PyTree; call `simulate(u)` for the output.
+
+    Final implementation of `AbstractHysteresis` (do not subclass).
+    """
+
+    INITS: ClassVar[tuple] = _INITS
+    trainable_groups: ClassVar[dict] = {"thresholds": ("r_sym", "r_asym"), "tilts": ("alpha",)}
+    scalable_thresholds: ClassVar[bool] = True
 
     gain: jnp.ndarray = positive()
     v: jnp.ndarray = positive()
@@ -78,6 +96,9 @@ class EUPI(eqx.Module):
     alpha: jnp.ndarray = positive()
     u_ref: jnp.ndarray = parameter()
     u_span: jnp.ndarray = positive()
+    # init="fitted": logit of each operator's start between its ascending (lower) and descending (upper)
+    # bound at the first input, trained with the gains (None for the other init rules)
+    memory: jnp.ndarray | None = parameter(default=None)
     init: str = eqx.field(static=True, default="descended")
     # evaluation form of the operator bank: "scan" (sequential), "assoc" / "chunked" / "segmented" (exact
     # parallel-in-time forms of smafl_jax.ops, equal to scan bit for bit) or "auto" (choose_model_method)
@@ -91,6 +112,10 @@ class EUPI(eqx.Module):
             raise ValueError(f"EUPI orientation must be +1 or -1, got {self.orientation!r}")
         if self.init not in _INITS:
             raise ValueError(f"EUPI init must be one of {_INITS}, got {self.init!r}")
+        if (self.init == "fitted") != (self.memory is not None):
+            raise ValueError("EUPI init='fitted' needs memory (one logit per operator), and memory needs init='fitted'")
+        if self.memory is not None and np.shape(self.memory) != (self.n_operators,):
+            raise ValueError(f"memory must have shape ({self.n_operators},), got {np.shape(self.memory)}")
         if self.method not in MODEL_METHODS:
             raise ValueError(f"EUPI method must be one of {MODEL_METHODS}, got {self.method!r}")
         nv, ns = np.shape(self.v), np.shape(self.r_sym)
@@ -143,6 +168,7 @@ class EUPI(eqx.Module):
             u_ref=jnp.asarray(ref),
             u_span=jnp.asarray(span),
             init=init,
+            memory=jnp.full(int(n_sym) + n_alpha * int(n_asym), DESCENDED_LOGIT) if init == "fitted" else None,
             method=method,
             orientation=int(orientation),
         )
@@ -158,28 +184,88 @@ class EUPI(eqx.Module):
         a = jnp.concatenate([jnp.ones_like(self.r_sym), jnp.repeat(self.alpha, n_ra)])
         return r, a
 
-    def normalise(self, u):
-        return (jnp.asarray(u, dtype=jnp.float64) - self.u_ref) / self.u_span
+    def with_range(self, u_min, u_max, **options):
+        """Untrained EUPI with this one's grid sizes and options for inputs in ``[u_min, u_max]``."""
+        n_alpha, n_asym = np.shape(self.w)
+        kw = dict(
+            n_sym=np.shape(self.v)[0], n_alpha=n_alpha, n_asym=n_asym, poly_order=np.shape(self.poly)[0] + 1,
+            init=self.init, method=self.method, orientation=self.orientation,
+        )  # fmt: skip
+        return type(self).from_range(u_min, u_max, **{**kw, **options})
+
+    def with_fitted_memory(self, logit=None) -> EUPI:
+        """Copy with ``init="fitted"``: every operator starts at ``sigmoid(logit)`` of the way from its lower
+        to its upper bound (default: near the descended state), a trainable ``memory``."""
+        logit = DESCENDED_LOGIT if logit is None else logit
+        return dataclasses.replace(self, init="fitted", memory=jnp.full(self.n_operators, float(logit)))
+
+    def with_method(self, method: str) -> EUPI:
+        return dataclasses.replace(self, method=method)
+
+    def linear_fields(self):
+        return ("gain", "v", "w", "poly", "offset")
+
+    def fixed_fields(self, train: Collection[str] = ()):
+        """``u_ref``, ``u_span`` always; thresholds and tilts unless their group is in ``train``."""
+        grids = [f for group, names in self.trainable_groups.items() if group not in train for f in names]
+        return ("u_ref", "u_span", *grids)
 
     def _initial_state(self, s0, r, a):
         if self.init == "descended":
             y0 = a * (s0 + r)  # upper bound at the first input: state left by a descent to u(0)
         elif self.init == "consistent":
             y0 = consistent_initial_state(s0, r, a)
+        elif self.init == "fitted":
+            lo, up = s0 - r, a * (s0 + r)
+            y0 = lo + jax.nn.sigmoid(self.memory) * (up - lo)
         else:
             y0 = None
         return y0
 
-    def operators(self, u):
-        """Operator outputs ``(T, n_sym + n_alpha * n_asym)`` on the normalised input."""
+    def initial_state(self, x0):
+        """Operator outputs before the first sample, by the ``init`` rule at the first input ``x0``."""
+        r, a = self._bank()
+        y0 = self._initial_state(self.normalise(x0), r, a)
+        return jnp.zeros_like(r) if y0 is None else y0
+
+    def step(self, state, x):
+        """One sample: play step of every operator, then the linear read-out (``features`` row @ weights)."""
+        s = self.normalise(x)
+        r, a = self._bank()
+        ops, _ = play_step(state, s, r, a)
+        n_poly = np.shape(self.poly)[0]
+        sign = float(self.orientation)  # a length sensor reads the operator sum with a minus sign
+        powers = jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0]
+        row = jnp.concatenate([sign * s[None], sign * ops, powers, jnp.ones(1)])
+        return ops, row @ self.linear_weights()
+
+    def operators(self, u, threshold_scale=None):
+        """Operator outputs ``(T, n_sym + n_alpha * n_asym)`` on the normalised input.
+
+        ``threshold_scale`` (``(T,)``, optional): every threshold multiplied by it at each sample (the
+        ``rate_dependence`` effect); the sequential scan is then the only form.
+        """
         s = self.normalise(u)
         r, a = self._bank()
-        return play(s, r, a, y0=self._initial_state(s[0], r, a), method=self.method)
+        if threshold_scale is None:
+            return play(s, r, a, y0=self._initial_state(s[0], r, a), method=self.method)
+        y0 = self._initial_state(s[0], r * threshold_scale[0], a)
+        y0 = jnp.zeros_like(r) if y0 is None else y0
 
-    def features(self, u):
-        """Design matrix ``(T, p)``: columns ``[s, F_sym, F_asym (tilt-major), s^2.., 1]``."""
+        def step(carry, xs):
+            sk, fk = xs
+            rk = r * fk
+            y = jnp.maximum(sk - rk, jnp.minimum(a * (sk + rk), carry))
+            return y, y
+
+        _, ys = jax.lax.scan(step, y0, (s, threshold_scale))
+        return ys
+
+    def features(self, u, dt=None, *, threshold_scale=None):
+        """Design matrix ``(T, p)``: columns ``[s, F_sym, F_asym (tilt-major), s^2.., 1]`` (``dt`` ignored)."""
+        del dt
         s = self.normalise(u)
-        ops = self.operators(u)
+        ops = self.operators(u, threshold_scale)
         n_poly = np.shape(self.poly)[0]
         # poly_order=1 (no polynomial terms) gives an empty block, not a failing empty stack
         powers = jnp.stack([s ** (m + 2) for m in range(n_poly)], axis=-1) if n_poly else jnp.zeros((s.shape[0], 0))

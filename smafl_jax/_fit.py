@@ -40,11 +40,11 @@ import numpy as np
 import optimistix as optx
 
 from . import _config  # noqa: F401
-from ._cascade import Cascade
 from ._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ._errors import UserInputError
-from ._eupi import EUPI
+from ._hysteresis import hysteresis_of
 from ._joule_lag import JouleLag
+from ._progress import count_step
 from ._thermal import JouleThermal
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
@@ -125,29 +125,6 @@ def _as_weights(weights, data):
 # -- model structure -------------------------------------------------------------
 
 
-def _eupi_of(model):
-    if isinstance(model, EUPI):
-        return model
-    if isinstance(model, Cascade):
-        return model.hysteresis
-    return getattr(model, "hysteresis", None)
-
-
-def _hysteresis_input(model, u, dt):
-    """Signal the EUPI of ``model`` sees for drive ``u`` (identity for a bare EUPI)."""
-    if isinstance(model, EUPI):
-        return jnp.asarray(u)
-    if hasattr(model, "hysteresis_input"):
-        return model.hysteresis_input(u, dt)
-    return model.thermal.effective_voltage(model.thermal.simulate(u, dt))
-
-
-def _replace_eupi(model, eupi):
-    if isinstance(model, EUPI):
-        return eupi
-    return eqx.tree_at(lambda m: m.hysteresis, model, eupi)
-
-
 def _lag_unit(thermal, u, dt):
     """Joule lag of ``U^2`` with unit static gain (the column that multiplies ``k2/k1``)."""
     return JouleThermal(k1=thermal.k1, k2=thermal.k1, init=thermal.init, u0=thermal.u0).simulate(u, dt)
@@ -163,26 +140,27 @@ def _lag_set_weights(m, theta):
     return eqx.tree_at(lambda x: (x.thermal.k2, x.offset), m, (g * m.thermal.k1, jnp.asarray(theta[1])))
 
 
-def _eupi_features(m, u, dt):
-    return _eupi_of(m).features(_hysteresis_input(m, u, dt))
+def _hysteresis_features(m, u, dt):
+    return m.features(u, dt)
 
 
-def _eupi_set_weights(m, theta):
-    return _replace_eupi(m, _eupi_of(m).with_linear_weights(theta))
+def _hysteresis_set_weights(m, theta):
+    return m.with_hysteresis(m.hysteresis.with_linear_weights(theta))
 
 
 def _linear_part(model):
     """``(features(model, u, dt), nonneg mask, with_weights(model, theta))`` or None.
 
-    The model's output is ``features @ theta`` for fixed nonlinear parameters.
+    The model's output is ``features @ theta`` for fixed nonlinear parameters: a `JouleLag`, or any
+    model with a hysteresis part (`smafl_jax._hysteresis`) whose output is linear in its weights.
     Module-level functions, so jitted callers compile once per shape.
     """
     if isinstance(model, JouleLag):
         return _lag_features, np.array([True, False]), _lag_set_weights
-    eupi = _eupi_of(model)
-    if eupi is None:
+    h = hysteresis_of(model)
+    if h is None or not model.linear_in_weights:
         return None
-    return _eupi_features, np.asarray(eupi.nonnegative_columns()), _eupi_set_weights
+    return _hysteresis_features, np.asarray(h.nonnegative_columns()), _hysteresis_set_weights
 
 
 def _has_k1(model):
@@ -194,7 +172,10 @@ def _set_k1(model, k1):
 
 
 def default_trainable(model, *, thresholds=False, tilts=False):
-    """PyTree of bools: train thermal k1 and EUPI gains, keep grids (optionally train them).
+    """PyTree of bools: train thermal k1 and the hysteresis weights, keep grids (EUPI: optionally train them).
+
+    The hysteresis part says which of its fields stay fixed (`AbstractHysteresis.fixed_fields`);
+    ``thresholds`` / ``tilts`` name its optional trainable groups.
 
     In a `Cascade` the hysteresis sees ``sqrt(theta k1 / k2)`` and ``theta`` is
     proportional to ``k2``, so the displacement does not depend on ``k2`` at all:
@@ -202,17 +183,16 @@ def default_trainable(model, *, thresholds=False, tilts=False):
     fixed.  ``k2`` (with ``k1``) is identified by fitting the `JouleLag`
     model (`JouleThermal` + offset) alone, as the paper does (eq. 7).
     """
+    if hasattr(model, "trainable_spec"):  # a composite model that states its own rule (`ExtendedModel`); no load signal here
+        return model.trainable_spec(load=False)
     spec = jax.tree_util.tree_map(eqx.is_inexact_array, model)
-    if _has_k1(model) and _eupi_of(model) is not None:
+    h = hysteresis_of(model)
+    if _has_k1(model) and h is not None:
         spec = eqx.tree_at(lambda s: s.thermal.k2, spec, False)
-    eupis = []
-    if isinstance(model, EUPI):
-        eupis = [lambda m: m]
-    elif _eupi_of(model) is not None:
-        eupis = [lambda m: m.hysteresis]
-    for get in eupis:
-        fixed = ["u_ref", "u_span"] + ([] if thresholds else ["r_sym", "r_asym"]) + ([] if tilts else ["alpha"])
-        spec = eqx.tree_at(lambda s: [getattr(get(s), f) for f in fixed], spec, [False] * len(fixed))
+    if h is not None:
+        train = [g for g, on in (("thresholds", thresholds), ("tilts", tilts)) if on]
+        fixed = h.fixed_fields(train)
+        spec = eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fixed], spec, [False] * len(fixed))
     return spec
 
 
@@ -256,7 +236,8 @@ def _bvls(A, b, nonneg):
         except np.linalg.LinAlgError:
             pass  # not positive definite even with the ridge: BVLS on the full system
     sol = lsq_linear(As, bs, bounds=(lb, np.full_like(lb, np.inf)), method="bvls")
-    x = sol.x / scale
+    # BVLS can end a bounded weight at -1e-18: saved, such a model would be refused on loading (positive fields)
+    x = np.where(nonneg, np.maximum(sol.x / scale, 0.0), sol.x / scale)
     res = A @ x - b
     return x, 0.5 * float(res @ res)
 
@@ -297,7 +278,7 @@ def _check_finite_features(A, i, u):
 def init_linear(model, data, dt=None, *, weights=None):
     """Paper's constrained least squares for the linear gains, other parameters fixed.
 
-    Returns a copy of ``model`` with the EUPI gains (or, for `JouleLag`, the
+    Returns a copy of ``model`` with the hysteresis weights (or, for `JouleLag`, the
     static gain and offset) replaced by the bounded least-squares solution
     (play-operator gains >= 0).
     """
@@ -311,7 +292,9 @@ def init_linear(model, data, dt=None, *, weights=None):
     weights = _as_weights(weights, data)
     part = _linear_part(model)
     if part is None:
-        raise UserInputError(f"init_linear needs a model with an EUPI part (or a JouleLag), got {type(model).__name__}")
+        raise UserInputError(
+            f"init_linear needs a model linear in its hysteresis weights (or a JouleLag), got {type(model).__name__}"
+        )
     feats, nonneg, setw = part
     blocks = []
     for i, (u, _, d) in enumerate(data):
@@ -429,9 +412,14 @@ def _make_optx_solver(name, rtol, atol):
     raise UserInputError(f"unknown solver {name!r}; choose one of {SOLVERS}")
 
 
+#: Solvers whose steps `_solve_optx` counts for the progress estimate.
+_COUNTED = ("lm", "gauss_newton", "bfgs")
+
+
 @eqx.filter_jit
 def _solve_optx(solver, raw_train, static, args, max_steps):
     def fn(p, a):
+        jax.debug.callback(count_step)  # one per residual evaluation ~ one per step: progress with an estimate
         return _residuals(constrain(eqx.combine(p, static)), a)
 
     if isinstance(solver, optx.AbstractMinimiser):
@@ -474,19 +462,22 @@ def _lift_zero_gains(model, spec, profiled):
     LM from the paper's k1 stalled at 27x the loss scipy reached).  Then they
     start at 1e-4 of the largest gain instead.
     """
-    eupi = _eupi_of(model)
-    if eupi is None:
+    h = hysteresis_of(model)
+    if h is None:
         return model
-    s = _eupi_of(spec)
-    grids = any(bool(getattr(s, f)) for f in ("r_sym", "r_asym", "alpha"))
+    hs = spec.hysteresis
+    linear = set(h.linear_fields())
+    grids = any(
+        bool(np.any(getattr(hs, f.name)))
+        for f in dataclasses.fields(h)
+        if f.name not in linear and eqx.is_array(getattr(h, f.name))
+    )
     k1 = _has_k1(model) and bool(spec.thermal.k1)
     if not (grids or (k1 and not profiled)):
         return model
-    floor = 1e-4 * float(jnp.max(jnp.abs(eupi.linear_weights()[: int(np.sum(eupi.nonnegative_columns()))])))
-    lifted = eqx.tree_at(
-        lambda e: (e.gain, e.v, e.w), eupi, tuple(jnp.maximum(getattr(eupi, f), floor) for f in ("gain", "v", "w"))
-    )
-    return _replace_eupi(model, lifted)
+    theta, nonneg = h.linear_weights(), np.asarray(h.nonnegative_columns())
+    floor = 1e-4 * float(jnp.max(jnp.abs(theta[nonneg]), initial=0.0))
+    return model.with_hysteresis(h.with_linear_weights(jnp.where(nonneg, jnp.maximum(theta, floor), theta)))
 
 
 def _finite_tree(tree):
@@ -585,7 +576,7 @@ def fit(
     t1 = time.perf_counter()
     from ._progress import heartbeat
 
-    with heartbeat(f"joint refinement ({solver})", enabled=progress):
+    with heartbeat(f"joint refinement ({solver})", enabled=progress, max_steps=max_steps if solver in _COUNTED else None):
         fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
     info["refine_seconds"] = time.perf_counter() - t1
     info["total_seconds"] = time.perf_counter() - t0

@@ -246,6 +246,18 @@ def remove_created_dirs_if_empty():
     return removed
 
 
+#: Temporary files of atomic writes in progress (removed by `remove_temporary_files` when a run is interrupted).
+_IN_FLIGHT: set[str] = set()
+
+
+def remove_temporary_files():
+    """Remove the temporary files of atomic writes still in progress (an interrupt ending the process)."""
+    for tmp in list(_IN_FLIGHT):
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        _IN_FLIGHT.discard(tmp)
+
+
 def atomic_write_bytes(path, data: bytes):
     """Write ``data`` to ``path`` through a temporary file in the same folder and `os.replace`.
 
@@ -261,6 +273,7 @@ def atomic_write_bytes(path, data: bytes):
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as exc:
         raise UserInputError(f"cannot write {path}: {_os_message(exc)}") from None
+    _IN_FLIGHT.add(tmp)
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
@@ -276,6 +289,8 @@ def atomic_write_bytes(path, data: bytes):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+    finally:
+        _IN_FLIGHT.discard(tmp)
 
 
 def atomic_write_text(path, text: str):

@@ -36,9 +36,16 @@ input came down from above ``u_max`` to ``u(0)`` (relays with ``b < u(0)`` up,
 like the EUPI's default); ``"zero"`` starts every relay down (virgin state).
 For a record starting at the bottom of the range (``u(0) <= L_0``, e.g. 0 V)
 both coincide: every relay is down.
+
+Orientation (``orientation``, like the EUPI's): with ``-1`` the relay sum and
+the linear term enter with a minus sign (a length sensor, whose reading falls
+as the actuator contracts); the weights stay >= 0 either way.
 """
 
 from __future__ import annotations
+
+from collections.abc import Collection
+from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -47,7 +54,10 @@ import numpy as np
 
 from . import _config  # noqa: F401
 from ._constraints import as_float_array, positive
+from ._hysteresis import AbstractHysteresis
 from ._io import register_model
+from ._padding import padded_call
+from ._progress import Steps
 
 __all__ = [
     "Preisach",
@@ -81,8 +91,13 @@ def _n_from_weights(m):
 
 
 @register_model
-class Preisach(eqx.Module):
-    """Discrete Preisach model on a triangular relay grid; `simulate(u)` gives the output."""
+class Preisach(AbstractHysteresis):
+    """Discrete Preisach model on a triangular relay grid; `simulate(u)` gives the output.
+
+    Final implementation of `AbstractHysteresis` (do not subclass).
+    """
+
+    INITS: ClassVar[tuple] = _INITS
 
     w: jnp.ndarray = positive()  # (n (n+1) / 2,) relay weights, np.tril_indices(n) order (i: up level, j: down level)
     offset: jnp.ndarray
@@ -94,8 +109,12 @@ class Preisach(eqx.Module):
     width: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)
     init: str = eqx.field(static=True, default="descended")
     linear: bool = eqx.field(static=True, default=False)
+    # +1: output rises with the relay sum; -1: falls (length sensor). Default +1: models saved before load unchanged.
+    orientation: int = eqx.field(static=True, default=1)
 
     def __check_init__(self):
+        if self.orientation not in (1, -1):
+            raise ValueError(f"Preisach orientation must be +1 or -1, got {self.orientation!r}")
         if self.init not in _INITS:
             raise ValueError(f"Preisach init must be one of {_INITS}, got {self.init!r}")
         nl = np.shape(self.levels)
@@ -110,7 +129,7 @@ class Preisach(eqx.Module):
             raise ValueError(f"width must be >= 0 (0 = crisp relays), got {float(self.width)}")
 
     @classmethod
-    def from_range(cls, u_min, u_max, *, n_levels=24, linear=False, init="descended", ramp=True):
+    def from_range(cls, u_min, u_max, *, n_levels=24, linear=False, init="descended", ramp=True, orientation=1):
         """Untrained model with ``n_levels`` cell-centred levels over ``[u_min, u_max]`` (weights zero; fit them).
 
         ``ramp=True`` spreads each relay over its cell (``width`` = cell width):
@@ -131,7 +150,16 @@ class Preisach(eqx.Module):
             width=jnp.asarray((u_max - u_min) / n if ramp else 0.0),
             init=init,
             linear=bool(linear),
+            orientation=int(orientation),
         )
+
+    def with_range(self, u_min, u_max, **options):
+        """Untrained grid with this one's size and options for inputs in ``[u_min, u_max]``."""
+        kw = dict(
+            n_levels=self.n_levels, linear=self.linear, init=self.init, ramp=bool(float(self.width) > 0),
+            orientation=self.orientation,
+        )  # fmt: skip
+        return type(self).from_range(u_min, u_max, **{**kw, **options})
 
     # -- structure -------------------------------------------------------
     @property
@@ -147,14 +175,37 @@ class Preisach(eqx.Module):
         i, j = np.tril_indices(self.n_levels)
         return self.levels[i], self.levels[j]
 
-    def normalise(self, u):
-        return (jnp.asarray(u, dtype=jnp.float64) - self.u_ref) / self.u_span
+    def linear_fields(self):
+        return ("w", "offset", "gain") if self.linear else ("w", "offset")
+
+    def fixed_fields(self, train: Collection[str] = ()):
+        """The grid (levels, span, ramp width) and, without a linear term, its unused gain."""
+        del train  # no optional groups: the grid is chosen by cross-validation, not trained
+        return ("levels", "u_ref", "u_span", "width") + (() if self.linear else ("gain",))
+
+    def initial_state(self, x0):
+        """Relay states before the first sample: all up (``descended``; the first sample then switches the
+        relays above it down) or all down (``zero``)."""
+        del x0
+        a, _ = self.thresholds()
+        return jnp.ones_like(a) if self.init == "descended" else jnp.zeros_like(a)
+
+    def step(self, state, x):
+        """One sample: every relay switched by ``x``, then the weighted read-out."""
+        a, b = self.thresholds()
+        lo, hi = _switch_fractions(x, a, b, self.width)
+        r = jnp.maximum(jnp.minimum(state, hi), lo)
+        o = float(self.orientation)
+        y = o * (r @ self.w) + self.offset
+        if self.linear:
+            y = y + o * self.gain * self.normalise(x)
+        return r, y
 
     def _scan(self, u, weights=None):
         """One scan over the input; per step the relay states (``weights=None``) or their weighted sum."""
         u = jnp.asarray(u, dtype=jnp.float64)
         a, b = self.thresholds()
-        r0 = jnp.ones_like(a) if self.init == "descended" else jnp.zeros_like(a)
+        r0 = self.initial_state(u[0])
         width = self.width
 
         def step(r, uk):
@@ -170,11 +221,13 @@ class Preisach(eqx.Module):
         """Relay states ``(T, n_relays)`` in ``[0, 1]`` (in {0, 1} for crisp relays)."""
         return self._scan(u)
 
-    def features(self, u):
-        """Design matrix ``(T, p)``: columns ``[relays, s (if linear), 1]`` (linear in the weights)."""
+    def features(self, u, dt=None):
+        """Design matrix ``(T, p)``: columns ``[relays, s (if linear), 1]`` (linear in the weights; ``dt`` ignored)."""
+        del dt
+        o = float(self.orientation)
         R = self._scan(u)
         s = self.normalise(u)
-        cols = [R] + ([s[:, None]] if self.linear else []) + [jnp.ones_like(s)[:, None]]
+        cols = [o * R] + ([o * s[:, None]] if self.linear else []) + [jnp.ones_like(s)[:, None]]
         return jnp.concatenate(cols, axis=1)
 
     def linear_weights(self):
@@ -200,9 +253,10 @@ class Preisach(eqx.Module):
     def simulate(self, u, dt=None):
         """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
         del dt
-        y = self._scan(u, self.w) + self.offset
+        o = float(self.orientation)
+        y = o * self._scan(u, self.w) + self.offset
         if self.linear:
-            y = y + self.gain * self.normalise(u)
+            y = y + o * self.gain * self.normalise(u)
         return y
 
 
@@ -258,7 +312,7 @@ def design(model, segments):
     rows, ys = [], []
     for seg in segments:
         u, y, mask = _as_seg(seg)
-        F = np.asarray(_features_jit(model, jnp.asarray(u, dtype=jnp.float64)))
+        F = padded_call(_features_jit, model, (np.asarray(u, dtype=np.float64),))  # few lengths, few compilations
         rows.append(F[mask])
         ys.append(np.asarray(y, float)[mask])
     return np.concatenate(rows), np.concatenate(ys)
@@ -412,7 +466,7 @@ def fit_everett(model, segments, interp="spline"):
     w, off = everett_weights(segments, np.asarray(model.levels), interp)
     fitted = model.with_linear_weights(jnp.asarray(np.concatenate([w, [off]])))
     A, y = design(fitted, segments)
-    res = A @ fitted.linear_weights() - y
+    res = A @ np.asarray(fitted.linear_weights()) - y
     n_desc = sum(int(len(_as_seg(s)[0]) - np.argmax(_as_seg(s)[0])) for s in segments)
     return fitted, {
         "sse": float(res @ res),
@@ -454,6 +508,7 @@ def cv_fit_preisach(
     criterion="rmse",
     keep=None,
     verbose=False,
+    progress=True,
 ):
     """Preisach fit with ``(n_levels, lam)`` chosen by inner cross-validation on ``segments`` only.
 
@@ -491,6 +546,9 @@ def cv_fit_preisach(
         inner = "time block: last 30 % of the training samples"
     table = []
     best = None
+    # progress per grid size, weighted by its cost (the solves grow with the cube of the relay count)
+    steps = Steps("Preisach cross-validation", len(n_levels_grid), unit="grid sizes", enabled=progress,
+                  weights=[(n * (n + 1) / 2) ** 3 for n in n_levels_grid])  # fmt: skip
     for n in n_levels_grid:
         m0 = Preisach.from_range(u_min, u_max, n_levels=n, linear=linear, init=init, ramp=ramp)
         blocks = [design(m0, [s]) for s in segs]
@@ -545,6 +603,7 @@ def cv_fit_preisach(
                 )
             if row[key] < best[key]:
                 best = row
+        steps.advance(note=f"{n} levels")
     full = [_as_seg(s) for s in segments]
     m_best = Preisach.from_range(u_min, u_max, n_levels=best["n_levels"], linear=linear, init=init, ramp=ramp)
     if best["method"] == "penalised":

@@ -1,38 +1,207 @@
-"""Heartbeat lines on stderr for long phases that run inside one compiled call.
+"""Progress of long phases, with a time estimate, reported through `logging`.
 
-A solver loop compiled into one XLA ``while`` (optimistix LM, a vmapped scan)
-cannot report from inside without slowing it down; a background thread prints
-``label: N s elapsed`` every ``every_s`` seconds instead, so the user sees the
-program is alive and how long the phase has taken.
+Library code never prints progress: it reports on the ``smafl_jax.progress``
+logger at INFO level.  The ``smafl`` command line shows those lines on stderr
+(`shown_on_stderr`); from Python, ``logging.basicConfig(level=logging.INFO)``
+shows them.
+
+- `Steps`: a phase made of N similar steps (null records, grid cells, report
+  sections): ``label: k/N, 12 s elapsed, about 30 s left``, the estimate being
+  the mean time per step so far times the steps left.
+- `heartbeat`: a phase that runs inside one compiled call (an optimistix
+  solve), which cannot report from inside without slowing it down; a
+  background thread reports every few seconds instead.  Given a step count
+  (`count_step`, called from the compiled loop through a host callback), it
+  also reports the steps done and an upper bound of the time left (the
+  solver may stop earlier than its step limit).
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
+import math
 import sys
 import threading
 import time
 
-__all__ = ["heartbeat"]
+__all__ = ["LOGGER", "Steps", "heartbeat", "count_step", "shown_on_stderr", "format_seconds"]
+
+LOGGER = logging.getLogger("smafl_jax.progress")
+
+#: Least seconds between two progress lines of one phase (the last step is always reported).
+EVERY_S = 5.0
+
+
+def format_seconds(s: float) -> str:
+    """``7 s``, ``2 min 05 s``, ``1 h 03 min``: a duration as a person reads it."""
+    if not math.isfinite(s):
+        return "? s"
+    s = max(0.0, s)
+    if s < 60:
+        return f"{s:.0f} s"
+    if s < 3600:
+        m, r = divmod(round(s), 60)
+        return f"{m} min {r:02d} s"
+    h, r = divmod(round(s), 3600)
+    return f"{h} h {r // 60:02d} min"
+
+
+def _emit(msg: str, stream=None) -> None:
+    if stream is not None:
+        print(msg, file=stream, flush=True)
+    else:
+        LOGGER.info(msg)
+
+
+class Steps:
+    """Counted steps of one phase; `advance` after each step reports progress and the time left.
+
+    Reports at most every ``every_s`` seconds (default `EVERY_S`) and always
+    after the last step; the estimate is the mean duration of the steps so far,
+    or, with ``weights`` (the relative cost of each step), the time per unit of
+    weight so far.
+    """
+
+    def __init__(
+        self, label: str, total: int, *, unit: str = "", every_s: float | None = None, enabled=True, stream=None, weights=None
+    ):
+        self.label, self.total, self.unit = label, int(total), unit
+        self.weights = None if weights is None else [float(w) for w in weights]
+        if self.weights is not None and len(self.weights) != self.total:
+            raise ValueError(f"{len(self.weights)} weights for {self.total} steps")
+        self.every_s = EVERY_S if every_s is None else every_s
+        self.enabled, self.stream = enabled, stream
+        self.done = 0
+        self.t0 = time.monotonic()
+        self._last = self.t0
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.t0
+
+    def remaining(self) -> float:
+        """Estimated seconds left (mean step duration so far x steps left); NaN before the first step."""
+        if self.done <= 0:
+            return float("nan")
+        if self.weights is not None:
+            done = sum(self.weights[: self.done])
+            return self.elapsed() / done * sum(self.weights[self.done :]) if done > 0 else float("nan")
+        return self.elapsed() / self.done * max(self.total - self.done, 0)
+
+    def message(self, note: str = "") -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        msg = f"  {self.label}: {self.done}/{self.total}{unit}, {format_seconds(self.elapsed())} elapsed"
+        if self.done < self.total and self.done > 0:
+            msg += f", about {format_seconds(self.remaining())} left"
+        return msg + (f" ({note})" if note else "")
+
+    def advance(self, n: int = 1, note: str = "") -> None:
+        self.done += n
+        now = time.monotonic()
+        if self.enabled and (self.done >= self.total or now - self._last >= self.every_s):
+            self._last = now
+            _emit(self.message(note), self.stream)
+
+
+# -- steps counted inside compiled loops ----------------------------------------------------------------
+
+
+class _Counter:
+    def __init__(self):
+        self.n = 0
+        self.first = None  # time of the first step: compile time is not part of the per-step estimate
+        self.last = None
+
+    def tick(self):
+        now = time.monotonic()
+        self.n += 1
+        if self.first is None:
+            self.first = now
+        self.last = now
+
+
+_ACTIVE: list[_Counter] = []
+
+
+def count_step(*_args) -> None:
+    """Host callback for one step of a compiled loop (``jax.debug.callback(count_step)``): counts it for the
+    innermost `heartbeat` that asked for a step count; does nothing otherwise."""
+    if _ACTIVE:
+        _ACTIVE[-1].tick()
 
 
 @contextlib.contextmanager
-def heartbeat(label: str, *, every_s: float = 10.0, enabled: bool = True, stream=None):
-    """Print ``label: N s elapsed`` every ``every_s`` seconds while the block runs (nothing when ``enabled`` is false)."""
+def heartbeat(label: str, *, every_s: float | None = None, enabled: bool = True, stream=None, max_steps: int | None = None):
+    """Report ``label: N s elapsed`` every ``every_s`` seconds while the block runs (nothing when ``enabled`` is false).
+
+    With ``max_steps``, evaluations counted by `count_step` (the first at the start point, then one per step)
+    are reported too, with an upper bound of the time left: ``step k of at most M, at most R left`` (R from
+    the mean step time so far, compiling excluded).
+    """
     if not enabled:
         yield
         return
+    every = EVERY_S if every_s is None else every_s
     stop = threading.Event()
     t0 = time.monotonic()
+    counter = _Counter()
+    if max_steps is not None:
+        _ACTIVE.append(counter)
 
     def beat():
-        while not stop.wait(every_s):
-            print(f"  {label}: {time.monotonic() - t0:.0f} s elapsed", file=stream or sys.stderr, flush=True)
+        while not stop.wait(every):
+            msg = f"  {label}: {format_seconds(time.monotonic() - t0)} elapsed"
+            n = counter.n - 1  # the first count is the evaluation at the start point (after compiling)
+            if max_steps is not None and n > 0:
+                per_step = (counter.last - counter.first) / n
+                msg += f", step {min(n, max_steps)} of at most {max_steps}, at most {format_seconds(per_step * max(max_steps - n, 0))} left"
+            _emit(msg, stream)
 
     thread = threading.Thread(target=beat, name="smafl-heartbeat", daemon=True)
     thread.start()
     try:
-        yield
+        yield counter
     finally:
         stop.set()
+        if max_steps is not None:
+            with contextlib.suppress(ValueError):
+                _ACTIVE.remove(counter)
         thread.join(timeout=1.0)
+
+
+# -- showing progress (the command line) ---------------------------------------------------------------
+
+
+class _StderrHandler(logging.Handler):
+    """Writes records to the *current* ``sys.stderr`` (which test runners and callers may swap)."""
+
+    def emit(self, record):
+        try:
+            print(self.format(record), file=sys.stderr, flush=True)
+        except (OSError, ValueError):  # stderr closed or gone: progress is not worth failing for
+            pass
+
+
+@contextlib.contextmanager
+def shown_on_stderr(enabled: bool = True):
+    """Show progress lines on stderr while the block runs (``enabled=False``: hide them); the CLI wraps each
+    command in it.  The logger's earlier state comes back afterwards (a command run inside another one,
+    such as the paper's posterior run by `smafl sample --no-progress`, does not silence its caller)."""
+    handler = _StderrHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    before = (LOGGER.level, LOGGER.propagate, list(LOGGER.handlers))
+    for h in before[2]:
+        if isinstance(h, _StderrHandler):
+            LOGGER.removeHandler(h)
+    LOGGER.addHandler(handler)
+    LOGGER.propagate = False  # shown once, by this handler, even when the root logger has handlers too
+    LOGGER.setLevel(logging.INFO if enabled else logging.WARNING)
+    try:
+        yield
+    finally:
+        LOGGER.removeHandler(handler)
+        for h in before[2]:
+            if h not in LOGGER.handlers:
+                LOGGER.addHandler(h)
+        LOGGER.setLevel(before[0])
+        LOGGER.propagate = before[1]

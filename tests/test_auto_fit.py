@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from reference import eupi_loop, random_reversals, thermal_loop
+from reference import eupi_loop, play_loop, random_reversals, thermal_loop
 
 import smafl_jax as sj
 from smafl_jax._choose import auto_structure, screen_start
@@ -113,3 +113,56 @@ def test_eupi_without_unparallel_operators_saves_and_loads():
     back = sj.model_from_dict(json.loads(json.dumps(sj.model_to_dict(m))))
     assert back.w.shape == (0, 0)
     np.testing.assert_allclose(np.asarray(back.simulate(np.linspace(0, 7, 20))), np.asarray(m.simulate(np.linspace(0, 7, 20))))
+
+
+def test_fitted_memory_matches_numpy_loop_and_spans_the_rules(rng):
+    """init="fitted": each operator starts sigmoid(memory) of the way from its lower to its upper bound."""
+    u = random_reversals(rng, 150)
+    base = sj.EUPI.from_range(0.0, 7.4, n_sym=3, n_alpha=2, n_asym=2)
+    base = base.with_linear_weights(jnp.asarray(rng.uniform(0.1, 1.0, base.linear_weights().shape[0])))
+    logits = rng.normal(0.0, 2.0, base.n_operators)
+    m = dataclasses.replace(base, init="fitted", memory=jnp.asarray(logits))
+    s = (u - float(m.u_ref)) / float(m.u_span)
+    r, a = (np.asarray(x) for x in m._bank())
+    lo, up = s[0] - r, a * (s[0] + r)
+    ops = play_loop(s, r, a, lo + (up - lo) / (1.0 + np.exp(-logits)))
+    np.testing.assert_allclose(np.asarray(m.operators(u)), ops, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(m.features(u) @ m.linear_weights()), np.asarray(m.simulate(u)), atol=1e-10)
+    # a large logit is the descended rule, a very negative one the ascended (lower) bound
+    np.testing.assert_allclose(np.asarray(base.with_fitted_memory(40.0).simulate(u)), np.asarray(base.simulate(u)), atol=1e-10)
+    asc = np.asarray(base.with_fitted_memory(-40.0).operators(u))
+    np.testing.assert_allclose(asc, play_loop(s, r, a, lo), atol=1e-10)
+    # the memory is a trained parameter: its gradient is finite and matches finite differences
+    y = np.asarray(m.simulate(u)) + 0.01 * rng.standard_normal(u.shape[0])
+
+    def loss(mem):
+        return jnp.sum((dataclasses.replace(m, memory=mem).simulate(u) - y) ** 2)
+
+    g = np.asarray(jax.grad(loss)(jnp.asarray(logits)))
+    i, h = int(np.argmax(np.abs(g))), 1e-6
+    e = np.zeros_like(logits)
+    e[i] = h
+    fd = (float(loss(jnp.asarray(logits + e))) - float(loss(jnp.asarray(logits - e)))) / (2 * h)
+    np.testing.assert_allclose(g[i], fd, rtol=1e-5)
+    with pytest.raises(ValueError, match="memory"):
+        dataclasses.replace(base, init="fitted")
+    with pytest.raises(ValueError, match="memory"):
+        dataclasses.replace(base, memory=jnp.zeros(base.n_operators))
+    back = sj.model_from_dict(sj.model_to_dict(m))
+    np.testing.assert_allclose(np.asarray(back.memory), logits)
+
+
+def test_joint_thermal_start_refinement_recovers_k1_and_u0(rng):
+    """A record that starts part-warm: the 2-D (k1, u0) profile finds both, where the fixed starts are off."""
+    dt, n = 0.5, 1600
+    u = np.clip(np.repeat(rng.uniform(0.0, 6.0, n // 80), 80) + 0.2 * rng.standard_normal(n), 0.0, 6.0)
+    truth = sj.Cascade.from_range(6.0, n_sym=4, n_alpha=2, n_asym=2)
+    truth = dataclasses.replace(truth, thermal=sj.JouleThermal(k1=0.04, k2=0.03, init="given", u0=3.1))
+    truth = truth.with_hysteresis(truth.hysteresis.with_linear_weights(jnp.asarray(rng.uniform(0.0, 1.0, 12))))
+    y = np.asarray(truth.simulate(u, dt)) + 0.002 * rng.standard_normal(n)
+    start = sj.Cascade.from_range(6.0, n_sym=4, n_alpha=2, n_asym=2)
+    model, table, info = screen_start(start, [(u, y, dt)], [np.ones(n)], orientation="rises", sees="voltage", memory="rule")
+    assert model.thermal.init == "given"
+    assert any(row.get("thermal_start") == "fitted" for row in table)
+    np.testing.assert_allclose(float(model.thermal.k1), 0.04, rtol=0.05)
+    np.testing.assert_allclose(float(model.thermal.u0), 3.1, rtol=0.05)

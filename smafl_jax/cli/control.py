@@ -59,7 +59,7 @@ def add_loop_arguments(p):
     p.add_argument(
         "--compensator-cascade",
         action="store_true",
-        help="run the I-I loop on the whole identified cascade instead of its static EUPI",
+        help="run the I-I loop on the whole identified cascade instead of its static hysteresis model",
     )
     p.add_argument("--seed", type=int, default=0, help="noise seed")
 
@@ -179,7 +179,7 @@ def build_loop(args):
         "kd": args.kd,
         "tf_s": args.tf,
         "K": args.K if args.controller == "composite" else None,
-        "compensator_forward_model": ("cascade" if args.compensator_cascade else "static EUPI")
+        "compensator_forward_model": ("cascade" if args.compensator_cascade else f"static {type(model.hysteresis).__name__}")
         if args.controller == "composite"
         else None,
         "dt_s": args.dt,

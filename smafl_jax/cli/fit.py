@@ -84,6 +84,13 @@ def add_parser(sub):
         default="auto",
         help="cascade thermal state at t=0: steady (at rest with the first input), cold, or fitted (auto: screened, then fitted)",
     )
+    p.add_argument(
+        "--memory",
+        choices=("fitted", "rule"),
+        default="fitted",
+        help="operators' state at t=0: fitted (each operator's place between its bounds is trained; one record) or "
+        "rule (the model's init rule, descended)",
+    )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")
     p.add_argument("--n-asym", type=int, default=4, help="thresholds per tilt (default 4)")
@@ -128,7 +135,12 @@ def run(args):
     out = prepare_out_dir(args.out or f"fit_{Path(rec.path).stem}")
     print(f"fitting {args.model} to {rec.path} ({len(rec)} samples, {rec.input_name} -> {rec.output_name})", file=sys.stderr)
     model, doc, masks = fit_record(
-        rec, split=args.split, val_fraction=args.val_fraction, refit=not args.no_refit, **_model_options(args, grid)
+        rec,
+        split=args.split,
+        val_fraction=args.val_fraction,
+        refit=not args.no_refit,
+        memory=args.memory,
+        **_model_options(args, grid),
     )
     import math
 

@@ -33,8 +33,8 @@ def add_parser(sub):
         "--linear",
         choices=["auto", "sample", "marginalise", "profile"],
         default="auto",
-        help="EUPI gains: sample them, marginalise them analytically (Gaussian prior) or profile them; "
-        "auto = marginalise when the model has an EUPI, else sample",
+        help="hysteresis weights (EUPI gains, Preisach relay weights): sample them, marginalise them analytically "
+        "(Gaussian prior) or profile them; auto = marginalise when the output is linear in them, else sample",
     )
     p.add_argument("--noise", choices=["gaussian", "student-t"], default="gaussian", help="noise model (scale is sampled)")
     p.add_argument("--nu", type=float, default=4.0, help="Student-t degrees of freedom (default 4)")
@@ -106,7 +106,7 @@ def run(args):
             raise UserInputError(f"{args.data_csv}: only {n_train} samples left for sampling after holding out the tail")
     linear = args.linear
     if linear == "auto":
-        linear = "marginalise" if hasattr(model, "hysteresis") or type(model).__name__ == "EUPI" else "sample"
+        linear = "marginalise" if "marginalise" in B.linear_modes(model) else "sample"
         if linear == "marginalise" and args.noise != "gaussian":
             linear = "profile"
     priors = B.load_priors(args.priors) if args.priors else None
