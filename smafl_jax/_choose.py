@@ -200,11 +200,10 @@ def screen_start(
     else:
         inputs, starts = (None,), (None,)
     say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: None)
-    table, best, best_by_input = [], None, {}
+    table, results = [], {}  # results[(sign, input, start)] = (loss, profiled model, key, info)
     t_all = time.perf_counter()
 
     def candidate(sign, inp, th):
-        nonlocal best
         m = _with_orientation(start, sign)
         if inp is not None:
             m = _with_sees(m, inp, u_hi)
@@ -220,24 +219,38 @@ def screen_start(
             return
         loss, fitted, info = got
         table.append({**row, "loss": loss, "seconds": time.perf_counter() - t0})
-        if best is None or loss < best[0]:
-            best = (loss, fitted, (sign, inp, th), info)
-        if inp not in best_by_input or loss < best_by_input[inp][0]:
-            best_by_input[inp] = (loss, fitted, (sign, inp, th), info)
+        results[(sign, inp, th)] = (loss, fitted, (sign, inp, th), info)
 
-    n_cand = len(signs) * len(inputs) * len(starts)
+    def report(sign, inp):
+        if inp is not None:
+            losses = [r[0] for k, r in results.items() if k[:2] == (sign, inp)]
+            say(
+                f"  start screening: output {'rises' if sign > 0 else 'falls'}, hysteresis sees {inp}: best profiled loss "
+                f"{min(losses, default=np.inf):.6g} ({len(table)}/{n_cand} candidates, {time.perf_counter() - t_all:.0f} s)"
+            )
+
+    # Orientation first, on the first two starts (a wrong sign costs 10-100x in loss whatever the start);
+    # the other starts only for the winning sign.
+    first, rest = starts[:2], starts[2:]
+    n_cand = len(signs) * len(inputs) * len(first) + len(inputs) * len(rest)
     for sign in signs:
         for inp in inputs:
-            for th in starts:
+            for th in first:
                 candidate(sign, inp, th)
-            if inp is not None:
-                say(
-                    f"  start screening: output {'rises' if sign > 0 else 'falls'}, hysteresis sees {inp}: best profiled loss "
-                    f"{min((r['loss'] for r in table if r['sees'] == inp and r['orientation'] == sign and r['loss'] is not None), default=np.inf):.6g} "
-                    f"({len(table)}/{n_cand} candidates, {time.perf_counter() - t_all:.0f} s)"
-                )
-    if best is None:
+            report(sign, inp)
+    if not results:
         raise UserInputError("no start candidate gave a finite model output; check the input units and range")
+    sign = min(results.values(), key=lambda r: r[0])[2][0]
+    if rest:
+        for inp in inputs:
+            for th in rest:
+                candidate(sign, inp, th)
+            report(sign, inp)
+    best_by_input = {}
+    for key, r in results.items():
+        if key[0] == sign and (key[1] not in best_by_input or r[0] < best_by_input[key[1]][0]):
+            best_by_input[key[1]] = r
+    best = min(best_by_input.values(), key=lambda r: r[0])
     if val_weights is not None and len(best_by_input) > 1:
         val_weights = [np.asarray(w, dtype=np.float64) for w in val_weights]
         if sum(float(np.sum(w)) for w in val_weights) > 0:

@@ -41,6 +41,13 @@ __all__ = ["fit_records", "write_records_outputs", "data_checks_doc", "data_chec
 
 log = logging.getLogger(__name__)
 
+
+def _axis_label(name, units):
+    from ._reportdoc import axis_label
+
+    return axis_label(name, units)
+
+
 #: Findings listed one by one in a report; the rest are counted (all are in fit.json).
 MAX_FINDING_LINES = 20
 #: Options of `fit_record` that `fit_records` takes (``split``: ``"auto"`` = LORO with >= 2 records, ``"none"`` = no LORO).
@@ -551,7 +558,7 @@ def _figure(out: Path, records, doc, details) -> dict:
         if yl is not None:
             ax.plot(r.time, yl, lw=0.9, color="C0", ls="--", label="held out (LORO)")
         ax.set_title(name, fontsize=8)
-        ax.set_ylabel(r.output_name or "output", fontsize=7)
+        ax.set_ylabel(_axis_label(r.output_name or "output", getattr(r, "units", None)), fontsize=7)
     axes[0, 0].legend(loc="best", fontsize=7)
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()

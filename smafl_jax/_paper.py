@@ -14,7 +14,6 @@ except the paper's own values, which are labelled as such.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -539,10 +538,7 @@ def run_paper(out, *, quick=False, datasets=None, real=None, seed=0):
         k: (v if not isinstance(v, dict) else {f"{a}/{b}": x for (a, b), x in v.items()}) for k, v in PAPER_VALUES.items()
     }
     atomic_write_json(out / "paper.json", summary)
-    print(
-        f"wrote {out / 'report.md'}, {out / 'report.html'} and {out / 'paper.json'} ({summary['elapsed_s']:.0f} s)",
-        file=sys.stderr,
-    )
+    summary["out"] = str(out)
     return summary
 
 

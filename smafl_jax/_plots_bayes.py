@@ -4,7 +4,32 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["corner_figure", "trace_figure", "predictive_time_figure", "predictive_loop_figure"]
+__all__ = ["corner_figure", "trace_figure", "predictive_time_figure", "predictive_loop_figure", "parameter_label"]
+
+#: Units of the parameters the sampler can draw (the rest are in the model's own units, said as such).
+PARAMETER_UNITS = {
+    "thermal.k1": "1/s",
+    "time_constant_s": "s",
+    "thermal.u0": "V",
+    "offset": "output units",
+    "noise.sigma": "output units",
+    "noise.nu": "unitless",
+}
+
+
+def parameter_label(name, output_unit=None):
+    """``thermal.k1 (1/s)``; the noise scale and offsets in the output's unit when known."""
+    unit = PARAMETER_UNITS.get(name)
+    if unit == "output units" and output_unit:
+        unit = output_unit
+    return f"{name} ({unit or 'model units'})"
+
+
+def _with_unit(label):
+    """An axis label that already names its unit stays; a bare column name gets one (or says it has none)."""
+    from ._reportdoc import axis_label
+
+    return label if "(" in str(label) else axis_label(label)
 
 
 def _plt():
@@ -16,11 +41,11 @@ def _plt():
     return plt
 
 
-def corner_figure(samples, names, truths=None, max_params=8, bins=40):
+def corner_figure(samples, names, truths=None, max_params=8, bins=40, output_unit=None):
     """Pairwise 2-D histograms below the diagonal, marginals on it (first ``max_params`` parameters)."""
     plt = _plt()
     samples = np.asarray(samples)[:, :max_params]
-    names = list(names)[:max_params]
+    names = [parameter_label(n, output_unit) for n in list(names)[:max_params]]
     d = samples.shape[1]
     fig, axes = plt.subplots(d, d, figsize=(1.9 * d + 1, 1.9 * d + 1), squeeze=False)
     lims = [np.quantile(samples[:, j], [0.001, 0.999]) for j in range(d)]
@@ -53,13 +78,14 @@ def corner_figure(samples, names, truths=None, max_params=8, bins=40):
                     ax.set_yticklabels([])
             else:
                 ax.set_ylabel(names[i], fontsize=7)
-    fig.suptitle("posterior (physical units); dashed: 2.5 / 50 / 97.5 %", fontsize=9)
+    fig.suptitle("posterior (physical units); dashed: 2.5 / 50 / 97.5 %; density axes unlabelled (relative)", fontsize=9)
     return fig
 
 
-def trace_figure(chain_phys, names, burn, max_params=8, max_walkers=16):
+def trace_figure(chain_phys, names, burn, max_params=8, max_walkers=16, output_unit=None):
     """Walker traces per parameter; the grey band is the discarded burn-in."""
     plt = _plt()
+    names = [parameter_label(n, output_unit) for n in names]
     chain_phys = np.asarray(chain_phys)
     d = min(chain_phys.shape[2], max_params)
     fig, axes = plt.subplots(d, 1, figsize=(8, 1.4 * d + 0.6), sharex=True, squeeze=False)
@@ -70,7 +96,7 @@ def trace_figure(chain_phys, names, burn, max_params=8, max_walkers=16):
         ax.axvspan(0, burn, color="0.85", zorder=-1)
         ax.set_ylabel(names[j], fontsize=7)
         ax.tick_params(labelsize=6)
-    axes[-1, 0].set_xlabel("step")
+    axes[-1, 0].set_xlabel("sampler step (count)")
     fig.suptitle(f"traces ({min(max_walkers, chain_phys.shape[1])} of {chain_phys.shape[1]} walkers); grey: burn-in", fontsize=9)
     return fig
 
@@ -89,7 +115,7 @@ def predictive_time_figure(time, y, f, yrep, train_mask, *, ylabel="output"):
     if (~tm).any():
         ax.plot(time[~tm], y[~tm], ".", ms=2, color="C3", label="held-out data")
     ax.set_xlabel("time (s)")
-    ax.set_ylabel(ylabel)
+    ax.set_ylabel(_with_unit(ylabel))
     ax.legend(fontsize=7, loc="best")
     cover = float(np.mean((y[~tm] >= yq[0][~tm]) & (y[~tm] <= yq[1][~tm]))) if (~tm).any() else None
     ttl = "posterior predictive over time"
@@ -112,8 +138,8 @@ def predictive_loop_figure(u, y, f, train_mask, *, xlabel="input", ylabel="outpu
     ax.plot(u[tm], y[tm], ".", ms=1.5, color="0.4", label="data used for sampling")
     if (~tm).any():
         ax.plot(u[~tm], y[~tm], ".", ms=2, color="C3", label="held-out data")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
+    ax.set_xlabel(_with_unit(xlabel))
+    ax.set_ylabel(_with_unit(ylabel))
     ax.legend(fontsize=7)
     ax.set_title("posterior predictive over the hysteresis loop", fontsize=9)
     return fig

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model, to_jsonable
+from ._reportdoc import axis_label, unit_of
 
 __all__ = ["write_diagnosis", "versions"]
 
@@ -63,7 +64,7 @@ def _fit_doc(rec, res, which, deployed=False):
     }
 
 
-def _plot(path, split, model_sim, title):
+def _plot(path, split, model_sim, title, ylabel="output"):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -71,7 +72,7 @@ def _plot(path, split, model_sim, title):
 
     from ._residuals import autocorrelation
 
-    fig, ax = plt.subplots(3, 1, figsize=(10, 8))
+    fig, ax = plt.subplots(3, 1, figsize=(10, 8), layout="constrained")
     t0 = 0.0
     all_e = []
     for kind, segs in (("train", split.train), ("held-out", split.test)):
@@ -85,8 +86,9 @@ def _plot(path, split, model_sim, title):
             ax[0].plot(x, yh[s.mask], color=color, lw=0.8)
             ax[1].plot(x, e, color=color, lw=0.8, label=kind if s is segs[0] else None)
             t0 = x[-1] + 1 if x.size else t0
-    ax[0].set_ylabel("output (black: measured)")
-    ax[1].set_ylabel("residual")
+    ax[0].set_ylabel(ylabel)
+    ax[0].set_title("black: measured; blue: model on training blocks; red: model on held-out blocks", fontsize=9)
+    ax[1].set_ylabel(ylabel.replace(ylabel.split(" (")[0], "residual", 1))
     ax[1].legend(loc="upper right")
     ax[1].set_xlabel("sample (train blocks, then held-out blocks)")
     e = np.concatenate(all_e)
@@ -95,7 +97,7 @@ def _plot(path, split, model_sim, title):
     b = 1.96 / np.sqrt(e.size)
     ax[2].axhline(b, color="r", ls="--", lw=0.8)
     ax[2].axhline(-b, color="r", ls="--", lw=0.8)
-    ax[2].set_ylabel("residual ACF")
+    ax[2].set_ylabel("residual autocorrelation (unitless)")
     ax[2].set_xlabel("lag (samples)")
     fig.suptitle(title)
     atomic_savefig(fig, path)
@@ -104,6 +106,7 @@ def _plot(path, split, model_sim, title):
 
 def _report_md(rec, res):
     b, x = res["base"], res["extended"]
+    u = unit_of(rec.output_name, getattr(rec, "units", None)) or f"units of '{rec.output_name}'"
     L = [
         f"# Diagnosis of `{rec.name}`",
         "",
@@ -112,7 +115,7 @@ def _report_md(rec, res):
         *([f"- **Warning:** {res['split']['coverage']['warning']}"] if res["split"].get("coverage", {}).get("warning") else []),
         f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**",
         "",
-        "| model | train RMSE | held-out RMSE | held-out e_r (%) |",
+        f"| model | train RMSE ({u}) | held-out RMSE ({u}) | held-out e_r (%) |",
         "|---|---|---|---|",
         f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
         f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |",
@@ -142,7 +145,7 @@ def _report_md(rec, res):
         "",
         "## Candidate effects (ranked by score-test evidence)",
         "",
-        "| effect | partial R2 | p | fitted | held-out RMSE | gain | dBIC | decision | parameters |",
+        f"| effect | partial R2 | p | fitted | held-out RMSE ({u}) | gain | dBIC | decision | parameters |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     num = lambda v, f: "n/a" if v is None or not np.isfinite(v) else format(v, f)  # no score test: n/a, not nan
@@ -212,12 +215,14 @@ def write_diagnosis(out, rec, res, base, ext, split):
         save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
     # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
     wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m
-    _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model")
+    ylabel = axis_label(rec.output_name, getattr(rec, "units", None))
+    _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model", ylabel)
     _plot(
         out / "residuals_after.png",
         split,
         lambda s: simulate_segment(wrap(ext), s),
         f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})",
+        ylabel,
     )
     atomic_write_text(out / "report.md", _report_md(rec, res))
     if arrays is not None:

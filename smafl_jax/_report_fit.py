@@ -305,9 +305,12 @@ def _figures(out, record, yhat, train, val):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ._reportdoc import axis_label
+
     t, u, y = record.time, record.u, record.y
-    yname = record.output_name or "output"
-    uname = record.input_name
+    units = getattr(record, "units", None)
+    yname = axis_label(record.output_name or "output", units)  # "displacement (mm)"; says so when no unit is known
+    uname = axis_label(record.input_name or "input", units)
     files = {}
 
     fig, ax = plt.subplots(figsize=(9, 3.6))
@@ -341,7 +344,7 @@ def _figures(out, record, yhat, train, val):
         ax.plot(t[val], err[val], ".", ms=2, color="C0", label="validation")
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel(f"residual {yname}")
+    ax.set_ylabel(axis_label(record.output_name or "output", units, prefix="residual "))
     ax.legend(loc="best", fontsize=8)
     files["residuals"] = "fit_residuals.png"
     atomic_savefig(fig, out / files["residuals"])

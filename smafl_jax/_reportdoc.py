@@ -15,7 +15,53 @@ from pathlib import Path
 
 from ._io import atomic_write_text
 
-__all__ = ["Report", "fmt"]
+__all__ = ["Report", "fmt", "axis_label", "unit_of"]
+
+#: Column-name suffixes that carry a unit (``displacement_mm``, ``voltage_V``, ``temperature_front_C``).
+_SUFFIX_UNITS = {
+    "mm": "mm",
+    "um": "µm",
+    "m": "m",
+    "V": "V",
+    "mV": "mV",
+    "A": "A",
+    "mA": "mA",
+    "W": "W",
+    "C": "°C",
+    "degC": "°C",
+    "K": "K",
+    "s": "s",
+    "ms": "ms",
+    "N": "N",
+    "kPa": "kPa",
+    "Pa": "Pa",
+    "bar": "bar",
+    "g": "g",
+    "pct": "%",
+    "percent": "%",
+    "deg": "°",
+}
+
+
+def unit_of(name, units=None):
+    """The unit of column ``name``: from the record's sidecar ``units``, else from a suffix such as ``_mm``
+    (``_V``, ``_C`` ...); None when neither gives one."""
+    if not name:
+        return None
+    if units and units.get(name):
+        return str(units[name])
+    base, sep, suffix = str(name).rpartition("_")
+    return _SUFFIX_UNITS.get(suffix) if sep and base else None
+
+
+def axis_label(name, units=None, *, prefix=""):
+    """An axis label with a unit: ``displacement (mm)`` for ``displacement_mm``; a name without a known unit
+    says so (``displacement (unit not given in the data)``) instead of pretending to have one."""
+    name = str(name or "output")
+    unit = unit_of(name, units)
+    base = name.rpartition("_")[0] if unit and not (units and units.get(name)) else name
+    text = f"{prefix}{base.replace('_', ' ')}"
+    return f"{text} ({unit})" if unit else f"{text} (unit not given in the data)"
 
 
 def fmt(x, digits=4):

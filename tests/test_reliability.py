@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -228,17 +229,14 @@ def test_oversized_csv_field_is_a_data_error(tmp_path):
         sj.load_record(path)
 
 
-def test_sample_refuses_a_diagnose_extended_model(tmp_path, capsys):
+def test_sample_refuses_a_model_it_cannot_condition():
+    # a diagnose ExtendedModel is sampled now (its effect parameters with the rest); an object without
+    # simulate(u, dt) is refused with a message naming it
     from smafl_jax._bayes import check_model_supported
 
-    ext = sj.ExtendedModel(sj.load_model(TRUTH), ())
-    with pytest.raises(sj.UserInputError, match="ExtendedModel"):
-        check_model_supported(ext)
-    fit = tmp_path / "extended_fit.json"
-    sj.save_model(fit, ext)
-    rc = main(["sample", str(_short_record(tmp_path)), "--fit", str(fit), "--out", str(tmp_path / "s")])
-    assert rc == 2 and "base_fit.json" in _one_error_line(capsys.readouterr().err, "sample")
-    assert not (tmp_path / "s").exists()
+    check_model_supported(sj.ExtendedModel(sj.load_model(TRUTH), ()))
+    with pytest.raises(sj.UserInputError, match="no simulate"):
+        check_model_supported(object())
 
 
 # -- sweeps: chunks, progress, any values ---------------------------------------------------------------
@@ -401,12 +399,15 @@ def _interrupt_when(cmd, marker, timeout=60):
 # slow: one of three local runs hung after the SIGINT (a deadlock at interrupt, not yet understood); kept out of
 # the default suite until that is fixed, run with `-m slow`
 @pytest.mark.slow
-@pytest.mark.parametrize("command", ["fit", "sample"])
+@pytest.mark.parametrize("command", ["fit", "sample", "diagnose"])
 def test_ctrl_c_during_fit_and_sample_exits_130_and_leaves_nothing_half_written(tmp_path, command):
     out = tmp_path / f"{command}_out"
     if command == "fit":
         cmd = [sys.executable, "-m", "smafl_jax", "fit", str(DATASETS / "steps.csv"), "--out", str(out), "--no-figures"]
         marker = "start candidate"  # inside the start screening
+    elif command == "diagnose":
+        cmd = [sys.executable, "-m", "smafl_jax", "diagnose", str(DATASETS / "main_loop.csv"), "--out", str(out)]
+        marker = "diagnose: "  # the base fit is starting
     else:
         cmd = [sys.executable, "-m", "smafl_jax", "sample", str(RECORD), "--fit", str(TRUTH), "--out", str(out)]
         cmd += ["--steps", "100000"]
@@ -418,5 +419,226 @@ def test_ctrl_c_during_fit_and_sample_exits_130_and_leaves_nothing_half_written(
     # no temporary files anywhere, and a fit writes nothing at all before it has a model
     leftovers = [p.name for p in tmp_path.rglob("*") if ".tmp" in p.name]
     assert not leftovers, leftovers
-    if command == "fit":
+    if command in ("fit", "diagnose"):
         assert not out.exists() or not any(out.iterdir())
+
+
+_SWALLOWING = """
+import os, signal, sys, time
+from pathlib import Path
+from smafl_jax import cli, _io
+from smafl_jax.cli import control
+
+def stuck(args):
+    tmp = Path(args.out) / ".half.tmp"  # an atomic write in progress when the interrupt comes
+    tmp.parent.mkdir(parents=True, exist_ok=True)
+    tmp.write_text("half")
+    _io._IN_FLIGHT.add(str(tmp))
+    # a handler that does nothing stands for a KeyboardInterrupt lost in a __del__ or held up by a long
+    # compiled call: only the watchdog can end the process
+    signal.signal(signal.SIGINT, lambda *a: None)
+    print("busy", file=sys.stderr, flush=True)
+    while True:
+        time.sleep(0.05)
+
+control.run = stuck
+sys.argv = ["smafl", "control", "--out", sys.argv[1]]
+sys.exit(cli.main())
+"""
+
+
+def test_ctrl_c_ends_the_process_even_when_the_interrupt_is_lost(tmp_path):
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-c", _SWALLOWING, str(out)]
+    t0 = time.monotonic()
+    rc, before, rest = _interrupt_when(cmd, "busy", timeout=30)
+    assert "busy" in before
+    assert rc == 130, rest
+    assert rest.strip().splitlines() == ["smafl control: interrupted"], rest
+    assert 2.0 < time.monotonic() - t0 < 25  # ended by the watchdog (INTERRUPT_GRACE_S = 3 s after the Ctrl-C)
+    assert not (out / ".half.tmp").exists()  # the temporary file of the unfinished write is removed
+
+
+def test_usage_errors_are_one_line(capsys):
+    cases = ((["check", "x.csv", "--bogus", "1"], "check"), (["fit", "--model", "nope", "x.csv"], "fit"), (["nosuch"], None))
+    for args, command in cases:
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert len(lines) == 1, err
+        assert lines[0].startswith(f"smafl {command}: error: " if command else "smafl: error: ")
+        assert "--help" in lines[0]
+
+
+@pytest.mark.parametrize("kind", ["missing", "empty", "binary", "non_finite"])
+def test_unreadable_input_records_exit_2_in_every_command(tmp_path, capsys, kind):
+    bad = tmp_path / f"{kind}.csv"
+    if kind == "empty":
+        bad.write_text("")
+    elif kind == "binary":
+        bad.write_bytes(b"\x00\x01PK\x03\x04" * 20)
+    elif kind == "non_finite":
+        bad.write_text("time_s,voltage_V,displacement_mm\n0,1,2\n0.1,nan,2\n0.2,1,3\n")
+    expect = {"missing": "file not found", "empty": "empty", "binary": "binary file", "non_finite": "row 3"}[kind]
+    out = tmp_path / "new"
+    cases = {
+        "check": ["check", str(bad)],
+        "fit": ["fit", str(bad), "--out", str(out)],
+        "simulate": ["simulate", str(TRUTH), str(bad), "--out", str(out / "p.csv")],
+        "diagnose": ["diagnose", str(bad), "--out", str(out)],
+        "sample": ["sample", str(bad), "--fit", str(TRUTH), "--out", str(out)],
+    }
+    for command, args in cases.items():
+        assert main(args) == 2, command
+        line = _one_error_line(capsys.readouterr().err, command)
+        assert bad.name in line and expect in line, line
+        assert not out.exists(), command
+
+
+def test_unreadable_model_files_and_missing_bundled_records_exit_2(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    rec = str(_short_record(tmp_path))
+    out = tmp_path / "new"
+    cases = {
+        "simulate": (["simulate", str(bad), rec, "--out", str(out / "p.csv")], "bad.json: not valid JSON"),
+        "control": (["control", "--model", str(bad), "--out", str(out)], "bad.json: not valid JSON"),
+        "sweep": (
+            ["sweep", "--model", str(tmp_path / "no.json"), "--x", "kp=1,2", "--y", "ki=1,2", "--out", str(out)],
+            "no.json",
+        ),
+        "sample": (["sample", rec, "--fit", str(bad), "--out", str(out)], "bad.json: not valid JSON"),
+        "paper": (["paper", "--datasets", str(tmp_path), "--out", str(out)], "bundled records missing"),
+    }
+    for command, (args, expect) in cases.items():
+        assert main(args) == 2, command
+        assert expect in _one_error_line(capsys.readouterr().err, command)
+        assert not out.exists(), command
+
+
+# -- progress ----------------------------------------------------------------------------------------
+
+
+def test_steps_report_progress_with_an_estimate():
+    import io
+
+    from smafl_jax._progress import Steps, format_seconds
+
+    buf = io.StringIO()
+    st = Steps("null records", 4, unit="records", every_s=0.0, stream=buf)
+    for _ in range(4):
+        time.sleep(0.02)
+        st.advance(note="x")
+    lines = buf.getvalue().splitlines()
+    assert len(lines) == 4
+    assert lines[0].strip().startswith("null records: 1/4 records,") and "about" in lines[0] and "left" in lines[0]
+    assert lines[-1].strip().startswith("null records: 4/4 records,") and "left" not in lines[-1]
+    # weighted steps: the estimate scales with the weight still to come
+    w = Steps("cv", 2, every_s=1e9, enabled=False, weights=[1.0, 9.0])
+    time.sleep(0.02)
+    w.advance()
+    assert w.remaining() == pytest.approx(9 * w.elapsed(), rel=0.05)
+    assert format_seconds(5) == "5 s" and format_seconds(125) == "2 min 05 s" and format_seconds(3700) == "1 h 01 min"
+
+
+def test_heartbeat_counts_the_steps_of_a_compiled_loop():
+    import io
+
+    import jax
+
+    from smafl_jax._progress import count_step, heartbeat
+
+    def body(i, x):
+        jax.debug.callback(count_step)
+        jax.debug.callback(lambda: time.sleep(0.03))
+        return x + 1.0
+
+    loop = jax.jit(lambda x: jax.lax.fori_loop(0, 20, body, x))
+    buf = io.StringIO()
+    with heartbeat("solver", every_s=0.1, stream=buf, max_steps=40):
+        jax.block_until_ready(loop(0.0))
+    count_step()  # outside any heartbeat: ignored
+    lines = buf.getvalue().splitlines()
+    with_steps = [ln for ln in lines if "of at most 40" in ln]
+    assert with_steps, lines
+    assert all(ln.endswith("left") for ln in with_steps)
+
+
+def test_cli_shows_library_progress_and_quiet_hides_it(tmp_path, capsys, monkeypatch):
+    from smafl_jax import _progress
+    from smafl_jax.cli import diagnose
+
+    def fake(args):
+        st = _progress.Steps("phase", 2, every_s=0.0)
+        st.advance()
+        st.advance()
+        return 0
+
+    monkeypatch.setattr(diagnose, "run", fake)
+    rec = str(_short_record(tmp_path))
+    assert main(["diagnose", rec, "--out", str(tmp_path / "d")]) == 0
+    assert "phase: 2/2" in capsys.readouterr().err
+    assert main(["diagnose", rec, "--out", str(tmp_path / "d"), "--quiet"]) == 0
+    assert "phase" not in capsys.readouterr().err
+    # outside the CLI the library stays silent unless logging is configured
+    _progress.Steps("phase", 1, every_s=0.0).advance()
+    assert "phase" not in capsys.readouterr().err
+
+
+def test_long_phases_report_progress(tmp_path, monkeypatch, caplog):
+    """Preisach cross-validation and the LM refinement of a fit report with an estimate (tiny records)."""
+    import logging
+
+    from smafl_jax import _progress
+    from smafl_jax._preisach import cv_fit_preisach
+
+    monkeypatch.setattr(_progress, "EVERY_S", 0.0)
+    rng = np.random.default_rng(0)
+    segs = []
+    for top in (1.0, 0.8, 0.6, 0.4):
+        u = np.r_[np.linspace(0, top, 15), np.linspace(top, 0, 15)]
+        segs.append((u, np.tanh(2 * u) + 0.01 * rng.standard_normal(u.size)))
+    with caplog.at_level(logging.INFO, logger="smafl_jax.progress"):
+        cv_fit_preisach(segs, 0.0, 1.0, n_levels_grid=(4, 6), lam_grid=(1e-3,), everett=())
+    msgs = [r.getMessage() for r in caplog.records]
+    assert any("Preisach cross-validation: 1/2 grid sizes" in m and "about" in m for m in msgs), msgs
+    assert any("Preisach cross-validation: 2/2 grid sizes" in m for m in msgs), msgs
+    caplog.clear()
+    monkeypatch.setattr(_progress, "EVERY_S", 0.01)
+    rec = sj.load_record(_short_record(tmp_path))
+    with caplog.at_level(logging.INFO, logger="smafl_jax.progress"):
+        sj.fit(sj.EUPI.from_range(0.0, float(rec.u.max())), rec, max_steps=5, progress=True)
+    assert any(r.getMessage().strip().startswith("joint refinement (lm):") for r in caplog.records)
+
+
+def test_padded_calls_equal_unpadded_ones():
+    import jax.numpy as jnp
+
+    from smafl_jax._padding import MIN_BUCKET, bucket_length, padded_call
+
+    for n in (1, 37, MIN_BUCKET, MIN_BUCKET + 1, 1000, 4097, 100_000):
+        b = bucket_length(n)
+        assert b >= n and (n <= MIN_BUCKET or b <= 1.125 * n)
+    assert len({bucket_length(n) for n in range(1, MIN_BUCKET + 1)}) == 1
+    model = sj.load_model(TRUTH)
+    rec = sj.load_record(RECORD)
+    for n in (50, 300, 777):
+        u = np.asarray(rec.u[:n])
+        direct = np.asarray(model.simulate(jnp.asarray(u), rec.dt))
+        padded = padded_call(lambda m, x, dt: m.simulate(x, dt), model, (u,), rec.dt)
+        assert padded.shape == (n,)
+        np.testing.assert_allclose(padded, direct, rtol=1e-13, atol=1e-14)
+
+
+def test_ctrl_c_inside_a_destructor_ends_the_run_without_a_traceback(tmp_path):
+    # Python cannot raise an exception out of __del__: it prints "Exception ignored in ..." with a traceback and
+    # runs on; a Ctrl-C landing there must still end the command (exit 130, one line)
+    code = (
+        "import sys\nfrom smafl_jax import cli\nfrom smafl_jax.cli import control\n"
+        "class Res:\n    def __del__(self):\n        raise KeyboardInterrupt\n"
+        "def run(args):\n    r = Res()\n    del r\n    print('not interrupted', file=sys.stderr)\n    return 0\n"
+        "control.run = run\nsys.argv = ['smafl', 'control', '--out', 'o']\nsys.exit(cli.main())\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=60, cwd=tmp_path)
+    assert r.returncode == 130, r.stderr
+    assert r.stderr.strip().splitlines() == ["smafl control: interrupted"], r.stderr

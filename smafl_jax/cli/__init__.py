@@ -43,9 +43,20 @@ def _version():
     return __version__
 
 
+class _UsageError(Exception):
+    """A command line argparse rejects (reported by `main` as one line, exit 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, except that a usage error raises `_UsageError` instead of printing the usage and exiting."""
+
+    def error(self, message):
+        raise _UsageError(message)
+
+
 def build_parser(command=None):
     """The ``smafl`` parser; only ``command``'s module is imported (all of them when ``command`` is ``"*"``)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="smafl",
         description="System identification, uncertainty and control for hysteretic thermal artificial muscles.",
     )
@@ -174,6 +185,16 @@ def _install_interrupt_watchdog(name):
             threading.Timer(INTERRUPT_GRACE_S, _interrupted_exit, (name,)).start()
 
     threading.Thread(target=watch, name="smafl-interrupt-watchdog", daemon=True).start()
+    previous = sys.unraisablehook
+
+    def unraisable(hook_args):
+        # a Ctrl-C that lands in a __del__ or a weakref callback cannot propagate ("Exception ignored in ...",
+        # with a traceback); it is still the user's interrupt: end the run now
+        if isinstance(hook_args.exc_value, KeyboardInterrupt):
+            _interrupted_exit(name)
+        previous(hook_args)
+
+    sys.unraisablehook = unraisable
 
 
 def main(argv=None):
@@ -208,6 +229,9 @@ def main(argv=None):
     except (UserInputError, OSError) as exc:
         _cleanup()
         print(f"{name}: error: {_error_text(exc)}", file=sys.stderr)
+        return 2
+    except _UsageError as exc:
+        print(f"{name}: error: {exc} (`{name} --help` lists the options)", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         if standalone:

@@ -181,9 +181,12 @@ def run(args):
     rng = np.random.default_rng(args.seed + 1)
     idx = rng.choice(flat.shape[0], size=min(args.draws, flat.shape[0]), replace=False)
     phys_flat = post.physical(flat)
-    atomic_savefig(corner_figure(phys_flat, post.names), out / "corner.png")
+    from .._reportdoc import unit_of
+
+    y_unit = unit_of(rec.output_name, getattr(rec, "units", None))
+    atomic_savefig(corner_figure(phys_flat, post.names, output_unit=y_unit), out / "corner.png")
     chain_phys = post.physical(result.chain.reshape(-1, post.ndim)).reshape(result.chain.shape)
-    atomic_savefig(trace_figure(chain_phys, post.names, burn), out / "trace.png")
+    atomic_savefig(trace_figure(chain_phys, post.names, burn, output_unit=y_unit), out / "trace.png")
     target = held if held is not None else rec
     f, yrep = post.predict(flat[idx], target.u, target.dt, rng)
     mask = np.zeros(len(target), bool) if held is not None else (np.arange(len(rec)) < n_train)

@@ -38,6 +38,14 @@ def add_parser(sub):
         "the output CSV is on that grid. Without it irregular sampling is an error",
     )
     p.add_argument(
+        "--initial-state",
+        choices=("fit", "steady", "cold", "estimate"),
+        default="fit",
+        help="start state on this record: fit (the fitted record's thermal start and operator memory, default), "
+        "steady (at rest with the first input), cold (ambient), or estimate (the start that best matches the "
+        "measured column over the first 20 %% of the record / 5 time constants)",
+    )
+    p.add_argument(
         "--method",
         choices=("auto", "scan", "assoc", "chunked", "segmented"),
         default=None,
@@ -81,6 +89,14 @@ def run(args):
             "the thermal part accounts for it, a rate-independent EUPI does not care",
             file=sys.stderr,
         )
+    if args.initial_state != "fit":
+        from .._initial_state import with_initial_state
+
+        meas = args.measured or data_info.get("output_column")
+        y_meas = np.asarray(rec.extra[meas], dtype=np.float64) if meas in rec.extra else None
+        model, start = with_initial_state(model, args.initial_state, rec.u, y_meas, rec.dt)
+        detail = f": thermal {start['thermal']}, operator memory {start['memory']}" if "thermal" in start else ""
+        print(f"note: initial state {args.initial_state}{detail}", file=sys.stderr)
     y = np.asarray(simulate(model, rec.u, rec.dt))
     if not np.all(np.isfinite(y)):
         raise UserInputError(f"{args.params}: the model produced non-finite output on {args.input_csv}")
