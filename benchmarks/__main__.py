@@ -23,6 +23,7 @@ SECTIONS = [
     ("emcee", "bench_emcee", "3. emcee log-probability evaluations"),
     ("control", "bench_control", "4. Closed-loop sweeps"),
     ("parallel_time", "bench_parallel_time", "5. Parallel-in-time forward pass: compile and run time by method (issue 15)"),
+    ("default_fit", "bench_default_fit", "6. Default `smafl fit` wall time on a 30 000-sample record (issue 18)"),
 ]
 DEFAULT_RATIO = "as defined by the section (see its module docstring)"
 README_MARK = "<!-- section:performance -->"

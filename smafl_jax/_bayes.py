@@ -48,7 +48,7 @@ from ._cascade import Cascade
 from ._constraints import constrain, log_jacobian, positive, unconstrain
 from ._errors import UserInputError
 from ._fit import as_fit_data, default_trainable
-from ._hysteresis import hysteresis_of
+from ._hysteresis import column_weight_scales, hysteresis_of
 from ._simulate import simulate
 from ._thermal import JouleThermal
 
@@ -260,6 +260,19 @@ def _element_names(name, shape):
     return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
 
 
+def _weight_prior_scales(model, names):
+    """``{leaf name: relative scale}`` for the hysteresis weight leaves whose scale is not 1 (see `weight_scales`)."""
+    h = hysteresis_of(model)
+    scales = {f: s for f, s in (h.weight_scales() if h is not None else {}).items() if s != 1.0}
+    if not scales:
+        return {}
+    marks = {f: object() for f in scales}  # tag the fields, then read their paths (= the sampler's leaf names)
+    tagged = eqx.tree_at(lambda m: [getattr(m.hysteresis, f) for f in marks], model, list(marks.values()))
+    where = {id(leaf): jax.tree_util.keystr(path).lstrip(".") for path, leaf in jax.tree_util.tree_flatten_with_path(tagged)[0]}
+    out = {where[id(mark)]: scales[f] for f, mark in marks.items()}
+    return {n: s for n, s in out.items() if n in names}
+
+
 def _ridge_lstsq(A, y, ridge):
     """``argmin |A w - y|^2 + |ridge * w|^2`` by SVD (stays finite for duplicate operator columns)."""
     Aa = jnp.concatenate([A, jnp.diag(ridge)], axis=0)
@@ -336,7 +349,8 @@ class Posterior:
         if linear != "sample":
             if linear not in linear_modes(model):
                 raise UserInputError(
-                    f"linear={linear!r} needs a model whose output is linear in its hysteresis weights, got "
+                    f"linear={linear!r} needs a model whose output is linear in its hysteresis weights (an EUPI, a "
+                    "Preisach, a cascade of either), got "
                     f"{type(model).__name__}{' with output-side effects' if hysteresis_of(model) is not None else ''}"
                 )
             if linear == "marginalise" and noise != "gaussian":
@@ -370,12 +384,18 @@ class Posterior:
         if unknown:
             raise UserInputError(f"priors given for unknown parameters {unknown}; sampled parameters are {self.names_leaf}")
         pri = default_priors(self.names_leaf, self.data)
+        for name, scale in _weight_prior_scales(model, self.names_leaf).items():  # e.g. Preisach relays: 1/sqrt(n)
+            if pri[name].dist in ("halfnormal", "normal"):
+                pri[name] = dataclasses.replace(pri[name], scale=pri[name].scale * scale)
         pri.update(user)
         self.priors = pri
         self._d = _Density(
             static=static,
             args=tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d)) for u, y, d in self.data),
-            gain_scale=jnp.asarray(self.gain_scale),
+            # prior sd of each marginalised / profiled weight: gain_scale x the hysteresis' relative scale of that column
+            gain_scale=jnp.asarray(
+                self.gain_scale * column_weight_scales(hysteresis_of(model)) if linear != "sample" else self.gain_scale
+            ),
             treedef=jax.tree_util.tree_structure(params),
             shapes=tuple(self.shapes_leaf),
             priors=tuple(pri[n] for n in self.names_leaf),
@@ -583,7 +603,7 @@ def _fixed_design(density, model):
     the marginal likelihood, the conditional mean and its draws are then O(p) / O(p^2) per point instead
     of a p x p Cholesky factorisation (p = 301 for the default Preisach grid)."""
     A, y, c = (np.asarray(x) for x in _design_jit(density, model))
-    tau = float(density.gain_scale) * c
+    tau = np.asarray(density.gain_scale) * c
     lam, U = np.linalg.eigh((A.T @ A) * np.outer(tau, tau))
     g = U.T @ (tau * (A.T @ y))
     return tuple(jnp.asarray(x) for x in (A, y, c, U, np.maximum(lam, 0.0), g))

@@ -16,7 +16,6 @@ not on ``k2``.  ``k2`` only has meaning for the Joule model fitted alone
 from __future__ import annotations
 
 import dataclasses
-from typing import ClassVar
 
 import equinox as eqx
 
@@ -35,8 +34,8 @@ SEES = ("voltage", "heat")
 class Cascade(eqx.Module):
     """Thermal model followed by a hysteresis model (`AbstractHysteresis`: EUPI, Preisach)."""
 
-    #: The output is ``features(u, dt) @ hysteresis.linear_weights()``.
-    linear_in_weights: ClassVar[bool] = True
+    #: The output is ``features(u, dt) @ hysteresis.linear_weights()`` (a class constant, not a field).
+    linear_in_weights = True
 
     thermal: JouleThermal
     hysteresis: AbstractHysteresis

@@ -30,7 +30,7 @@ from ._cascade import Cascade
 from ._errors import UserInputError
 from ._fit import as_fit_data, fit
 
-__all__ = ["auto_structure", "screen_start", "refine_thermal_start", "COLD_FRACTION", "START_FRACTIONS"]
+__all__ = ["auto_structure", "screen_start", "refine_thermal_start", "fitted_memory_start", "COLD_FRACTION", "START_FRACTIONS"]
 
 #: Initial effective voltage of a "cold" start, as a fraction of the input maximum.  Not exactly 0: the
 #: refinement fits ``u0`` through a softplus, whose gradient vanishes at 0 (a start there could never warm up).
@@ -284,6 +284,14 @@ def screen_start(
         row = {"orientation": sign, "sees": inp, "thermal_start": "fitted" if free_start else th}
         model, loss, info = _screen_memory(model, data, weights, loss, info, table, say, row)
     return model, table, info
+
+
+def fitted_memory_start(model, data, weights):
+    """``(model, label)``: ``model`` with a fitted operator memory from its best start, gains profiled, or None."""
+    if not hasattr(model.hysteresis, "with_fitted_memory"):
+        return None
+    got, _, info = _screen_memory(model, as_fit_data(data), weights, np.inf, {}, [], lambda msg: None, {})
+    return (got, info["memory_start"]) if "memory_start" in info else None
 
 
 def _screen_memory(model, data, weights, loss, info, table, say, row):

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Collection
-from typing import ClassVar
+from types import MappingProxyType
 
 import equinox as eqx
 import jax
@@ -82,9 +82,9 @@ class EUPI(AbstractHysteresis):
     Final implementation of `AbstractHysteresis` (do not subclass).
     """
 
-    INITS: ClassVar[tuple] = _INITS
-    trainable_groups: ClassVar[dict] = {"thresholds": ("r_sym", "r_asym"), "tilts": ("alpha",)}
-    scalable_thresholds: ClassVar[bool] = True
+    INITS = _INITS
+    trainable_groups = MappingProxyType({"thresholds": ("r_sym", "r_asym"), "tilts": ("alpha",)})
+    scalable_thresholds = True
 
     gain: jnp.ndarray = positive()
     v: jnp.ndarray = positive()

@@ -37,7 +37,8 @@ from __future__ import annotations
 import abc
 from collections.abc import Collection
 from importlib import import_module
-from typing import Any, ClassVar
+from types import MappingProxyType
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -46,26 +47,27 @@ import numpy as np
 
 from . import _config  # noqa: F401
 
-__all__ = ["AbstractHysteresis", "hysteresis_of", "hysteresis_models", "hysteresis_class"]
+__all__ = ["AbstractHysteresis", "hysteresis_of", "hysteresis_models", "hysteresis_class", "column_weight_scales"]
 
 
 class AbstractHysteresis(eqx.Module):
     """Rate-independent hysteresis ``x -> y`` with memory, linear in its weights for fixed grids (see module docstring)."""
 
-    # Fields every implementation has (declared there, with their defaults: an abstract field here would
-    # come first in the dataclass order): ``u_ref``, ``u_span`` (normalisation s = (x - u_ref) / u_span),
-    # ``init`` (initial-state rule, static) and ``orientation`` (+1 / -1, static).
-    u_ref: eqx.AbstractVar[Any]
-    u_span: eqx.AbstractVar[Any]
+    # Fields every implementation declares itself (an `eqx.AbstractVar` here would move them to the front of
+    # the subclass's dataclass fields, changing its positional __init__ and JSON order): ``u_ref``, ``u_span``
+    # (normalisation s = (x - u_ref) / u_span), ``init`` (initial-state rule, static) and ``orientation``
+    # (+1 / -1, static: the sign of the non-negative part of the features).
 
+    # Class constants (plain attributes, not annotated: a ClassVar annotation would enter every subclass's
+    # __dataclass_fields__).
     #: Initial-state rules the model accepts as ``init`` (the first is the default).
-    INITS: ClassVar[tuple] = ()
+    INITS = ()
     #: Optional groups of grid fields a fit may train on request (``{"thresholds": ("r_sym", "r_asym")}``).
-    trainable_groups: ClassVar[dict] = {}
+    trainable_groups = MappingProxyType({})
     #: ``features(x, threshold_scale=...)`` accepted: thresholds scaled per sample (the ``rate_dependence`` effect).
-    scalable_thresholds: ClassVar[bool] = False
+    scalable_thresholds = False
     #: The output is ``features(u, dt) @ hysteresis.linear_weights()`` (true of every hysteresis model and cascade).
-    linear_in_weights: ClassVar[bool] = True
+    linear_in_weights = True
 
     # -- construction --------------------------------------------------------
     @classmethod
@@ -97,6 +99,15 @@ class AbstractHysteresis(eqx.Module):
     @abc.abstractmethod
     def linear_fields(self) -> tuple[str, ...]:
         """Names of the fields `with_linear_weights` sets (marginalised / profiled together by the sampler)."""
+
+    def weight_scales(self) -> dict[str, float]:
+        """Prior scale of each linear field's weights, relative to the output range (the sampler's priors).
+
+        1 (the default) for a weight whose feature column alone can span the output (an EUPI gain);
+        a bank of ``n`` relays sharing the output gets ``1 / sqrt(n)`` each, so the bank as a whole
+        has the scale of one gain.
+        """
+        return dict.fromkeys(self.linear_fields(), 1.0)
 
     @abc.abstractmethod
     def fixed_fields(self, train: Collection[str] = ()) -> tuple[str, ...]:
@@ -157,6 +168,16 @@ def hysteresis_of(model) -> AbstractHysteresis | None:
     """The hysteresis part of ``model`` (the model itself, a cascade's, an extended model's), or None."""
     h = getattr(model, "hysteresis", None)
     return h if isinstance(h, AbstractHysteresis) else None
+
+
+def column_weight_scales(h: AbstractHysteresis) -> np.ndarray:
+    """`AbstractHysteresis.weight_scales` spread over the columns of ``features`` (``(p,)``)."""
+    p = int(np.shape(h.linear_weights())[0])
+    index = h.with_linear_weights(jnp.arange(p, dtype=jnp.float64))  # each field then holds its column numbers
+    out = np.ones(p)
+    for field, scale in h.weight_scales().items():
+        out[np.asarray(getattr(index, field), dtype=int).ravel()] = scale
+    return out
 
 
 def hysteresis_class(name: str) -> type:

@@ -45,7 +45,6 @@ as the actuator contracts); the weights stay >= 0 either way.
 from __future__ import annotations
 
 from collections.abc import Collection
-from typing import ClassVar
 
 import equinox as eqx
 import jax
@@ -97,7 +96,7 @@ class Preisach(AbstractHysteresis):
     Final implementation of `AbstractHysteresis` (do not subclass).
     """
 
-    INITS: ClassVar[tuple] = _INITS
+    INITS = _INITS
 
     w: jnp.ndarray = positive()  # (n (n+1) / 2,) relay weights, np.tril_indices(n) order (i: up level, j: down level)
     offset: jnp.ndarray
@@ -177,6 +176,10 @@ class Preisach(AbstractHysteresis):
 
     def linear_fields(self):
         return ("w", "offset", "gain") if self.linear else ("w", "offset")
+
+    def weight_scales(self):
+        """Relays share the output: ``1 / sqrt(n_relays)`` each, so the whole bank has the scale of one gain."""
+        return {"w": 1.0 / np.sqrt(self.n_relays), "offset": 1.0, "gain": 1.0}
 
     def fixed_fields(self, train: Collection[str] = ()):
         """The grid (levels, span, ramp width) and, without a linear term, its unused gain."""
@@ -318,14 +321,15 @@ def design(model, segments):
     return np.concatenate(rows), np.concatenate(ys)
 
 
-def solve_penalised(A, y, nonneg, P, lam):
+def solve_penalised(A, y, nonneg, P, lam, *, dof=True):
     """``min ||A x - y||^2 + lam x' P x`` s.t. ``x[nonneg] >= 0`` (NNLS on the Cholesky-reduced normal equations).
 
     Unbounded columns enter NNLS twice (``x = x+ - x-``).  Lawson-Hanson NNLS
     gives the same minimiser as scipy's BVLS here, about 25x faster on a
     631-relay grid (the inner CV solves it hundreds of times).
     Returns ``(x, dof)`` with ``dof = trace(H)``, the hat matrix restricted to
-    the free (non-clamped) columns: the effective number of parameters.
+    the free (non-clamped) columns: the effective number of parameters
+    (``dof=False``: None, skipping its solve, e.g. in the cross-validation cells).
     """
     from scipy.linalg import cho_factor, solve_triangular
     from scipy.optimize import nnls
@@ -340,12 +344,13 @@ def solve_penalised(A, y, nonneg, P, lam):
     z, _ = nnls(Rs, rhs, maxiter=50 * Rs.shape[1])
     x = z[: R.shape[1]].copy()
     x[unbounded] -= z[R.shape[1] :]
+    if not dof:
+        return x, None
     free = ~nonneg | (x > 1e-10 * max(np.max(np.abs(x)), 1e-300))
     Af = A[:, free]
     Gf = Af.T @ Af + lam * P[np.ix_(free, free)]
     Gf[np.diag_indices_from(Gf)] += jitter
-    dof = float(np.trace(np.linalg.solve(Gf, Af.T @ Af)))
-    return x, dof
+    return x, float(np.trace(np.linalg.solve(Gf, Af.T @ Af)))
 
 
 def penalty_matrix(model, smooth, ridge=0.0):
@@ -559,7 +564,7 @@ def cv_fit_preisach(
             for tr, va in folds:
                 A = np.concatenate([blocks[i][0] for i in tr])
                 y = np.concatenate([blocks[i][1] for i in tr])
-                x, _ = solve_penalised(A, y, nonneg, P1 * (lam * A.shape[0]), 1.0)
+                x, _ = solve_penalised(A, y, nonneg, P1 * (lam * A.shape[0]), 1.0, dof=False)
                 for i in va:
                     r = blocks[i][0] @ x - blocks[i][1]
                     sse, cnt, mx = sse + float(r @ r), cnt + r.size, max(mx, float(np.max(np.abs(r), initial=0.0)))

@@ -86,9 +86,10 @@ def _plot(path, split, model_sim, title, ylabel="output"):
             ax[0].plot(x, yh[s.mask], color=color, lw=0.8)
             ax[1].plot(x, e, color=color, lw=0.8, label=kind if s is segs[0] else None)
             t0 = x[-1] + 1 if x.size else t0
-    ax[0].set_ylabel(ylabel)
+    two_lines = lambda label: label.replace(" (", "\n(", 1)  # name over unit: long labels stay inside the figure
+    ax[0].set_ylabel(two_lines(ylabel))
     ax[0].set_title("black: measured; blue: model on training blocks; red: model on held-out blocks", fontsize=9)
-    ax[1].set_ylabel(ylabel.replace(ylabel.split(" (")[0], "residual", 1))
+    ax[1].set_ylabel(two_lines(ylabel.replace(ylabel.split(" (")[0], "residual", 1)))
     ax[1].legend(loc="upper right")
     ax[1].set_xlabel("sample (train blocks, then held-out blocks)")
     e = np.concatenate(all_e)

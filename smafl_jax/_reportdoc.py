@@ -56,12 +56,12 @@ def unit_of(name, units=None):
 
 def axis_label(name, units=None, *, prefix=""):
     """An axis label with a unit: ``displacement (mm)`` for ``displacement_mm``; a name without a known unit
-    says so (``displacement (unit not given in the data)``) instead of pretending to have one."""
+    says so (``displacement (unit not given)``) instead of pretending to have one."""
     name = str(name or "output")
     unit = unit_of(name, units)
     base = name.rpartition("_")[0] if unit and not (units and units.get(name)) else name
     text = f"{prefix}{base.replace('_', ' ')}"
-    return f"{text} ({unit})" if unit else f"{text} (unit not given in the data)"
+    return f"{text} ({unit})" if unit else f"{text} (unit not given)"
 
 
 def fmt(x, digits=4):

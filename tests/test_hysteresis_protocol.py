@@ -10,6 +10,7 @@ user's path: ``smafl fit --model preisach`` -> ``control`` / ``sweep`` / ``sampl
 import dataclasses
 import json
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -25,14 +26,12 @@ from smafl_jax.cli import main
 
 MODELS = hysteresis_models()
 IDS = [cls.__name__ for cls in MODELS]
-TRUTH = sj.load_model("datasets/truth.json") if False else None  # loaded lazily in the tests (path from the fixture)
 
 
 def _example(cls, rng, *, init=None, orientation=1, u_max=3.5, **options):
     """A model of ``cls`` on ``[0, u_max]`` with random weights (>= 0 where required), small grid for speed."""
     small = {"EUPI": dict(n_sym=4, n_alpha=2, n_asym=3), "Preisach": dict(n_levels=6)}.get(cls.__name__, {})
-    m = cls.from_range(0.0, u_max, **{**small, **options})
-    m = dataclasses.replace(m, init=init or cls.INITS[0], orientation=orientation)
+    m = cls.from_range(0.0, u_max, init=init or cls.INITS[0], orientation=orientation, **{**small, **options})
     nonneg = np.asarray(m.nonnegative_columns())
     theta = np.where(nonneg, rng.uniform(0.0, 1.0, nonneg.size), rng.normal(0.0, 0.3, nonneg.size))
     return m.with_linear_weights(jnp.asarray(theta))
@@ -44,26 +43,33 @@ def _input(rng, u_max=3.5, n=300):
 
 
 def _cases():
-    return [(cls, init, o) for cls in MODELS for init in cls.INITS for o in (1, -1)]
+    """Every init rule of every model (orientation +1), and the falling orientation with the default init."""
+    return [(cls, init, 1) for cls in MODELS for init in cls.INITS] + [(cls, cls.INITS[0], -1) for cls in MODELS]
+
+
+@eqx.filter_jit
+def _evaluations(m, u):
+    """Whole-record output, features @ weights, the scan of `step`, the abstract scan, and the flipped features."""
+    _, ys = jax.lax.scan(lambda st, x: m.step(st, x), m.initial_state(u[0]), u)
+    flipped = dataclasses.replace(m, orientation=-m.orientation)
+    return m.simulate(u), m(u), m.features(u), ys, AbstractHysteresis.simulate(m, u), flipped.features(u)
 
 
 @pytest.mark.parametrize(("cls", "init", "orientation"), _cases(), ids=lambda x: getattr(x, "__name__", str(x)))
 def test_features_step_and_evaluation_agree(cls, init, orientation, rng):
     m = _example(cls, rng, init=init, orientation=orientation)
     assert isinstance(m, AbstractHysteresis) and m.hysteresis is m and hysteresis_of(m) is m
+    assert m.init == init and m.orientation == orientation
     u = _input(rng)
-    y = np.asarray(m.simulate(u))
-    np.testing.assert_allclose(np.asarray(m(u)), y, rtol=0, atol=0)
-    np.testing.assert_allclose(np.asarray(m.features(u) @ m.linear_weights()), y, rtol=0, atol=1e-12)
-    _, ys = jax.lax.scan(lambda st, x: m.step(st, x), m.initial_state(u[0]), u)
-    np.testing.assert_allclose(np.asarray(ys), y, rtol=0, atol=1e-12)
-    # the abstract whole-record evaluation (a scan of `step`) is the same function
-    np.testing.assert_allclose(np.asarray(AbstractHysteresis.simulate(m, u)), y, rtol=0, atol=1e-12)
-    # the orientation flips the hysteresis part: the same weights read with -1 mirror the output about the offset column
-    flipped = dataclasses.replace(m, orientation=-orientation)
-    F, Ff = np.asarray(m.features(u)), np.asarray(flipped.features(u))
-    np.testing.assert_allclose(Ff[:, :-1], -F[:, :-1], atol=0)
-    np.testing.assert_allclose(Ff[:, -1], F[:, -1], atol=0)
+    y, y_call, F, ys, y_abstract, Ff = (np.asarray(x) for x in _evaluations(m, u))
+    np.testing.assert_array_equal(y_call, y)
+    np.testing.assert_allclose(F @ np.asarray(m.linear_weights()), y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ys, y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(y_abstract, y, rtol=0, atol=1e-12)  # the protocol's default evaluation: a scan of `step`
+    # the orientation is the sign of the non-negative (hysteresis) part; the free columns (offset, polynomial) keep theirs
+    nonneg = np.asarray(m.nonnegative_columns())
+    np.testing.assert_array_equal(Ff[:, nonneg], -F[:, nonneg])
+    np.testing.assert_array_equal(Ff[:, ~nonneg], F[:, ~nonneg])
 
 
 @pytest.mark.parametrize("cls", MODELS, ids=IDS)
@@ -83,7 +89,11 @@ def test_linear_weights_round_trip_and_fields(cls, rng):
     lin, fixed = set(m.linear_fields()), set(m.fixed_fields())
     assert lin <= names and fixed <= names and not lin & fixed
     # only the linear weights differ between two weight vectors
-    diff = {f for f in names if eqx_array(getattr(m, f)) and not np.array_equal(np.asarray(getattr(m, f)), np.asarray(getattr(back, f)))}
+    diff = {
+        f
+        for f in names
+        if eqx_array(getattr(m, f)) and not np.array_equal(np.asarray(getattr(m, f)), np.asarray(getattr(back, f)))
+    }
     assert diff <= lin
     # default_trainable never trains a fixed field; every linear field is trained
     spec = sj.default_trainable(m)
@@ -154,7 +164,10 @@ def test_posterior_samples_only_weights_and_noise(cls, rng):
 def test_extended_model_runs_any_hysteresis(cls, rng):
     m = _example(cls, rng)
     u = _input(rng, n=200)
-    effects = (EFFECTS["input_warp"](c=jnp.asarray(0.1), b=jnp.asarray(1.5)), EFFECTS["creep"](g=jnp.asarray(0.1), tau=jnp.asarray(5.0)))
+    effects = (
+        EFFECTS["input_warp"](c=jnp.asarray(0.1), b=jnp.asarray(1.5)),
+        EFFECTS["creep"](g=jnp.asarray(0.1), tau=jnp.asarray(5.0)),
+    )
     ext = ExtendedModel(m, effects)
     assert ext.hysteresis is m and ext.linear_in_weights
     y = np.asarray(ext.simulate(u, 0.5))
@@ -194,15 +207,18 @@ def _short_record(tmp_path, datasets_dir, n=400):
 
 
 def test_cli_fit_preisach_then_control_sweep_and_sample(tmp_path, datasets_dir, capsys):
-    rec = _short_record(tmp_path, datasets_dir)
+    record = datasets_dir / "main_loop.csv"
     fit_dir = tmp_path / "fit"
-    assert main(["fit", str(rec), "--model", "preisach", "--max-steps", "0", "--no-figures", "--out", str(fit_dir)]) == 0
+    assert main(["fit", str(record), "--model", "preisach", "--max-steps", "0", "--no-figures", "--out", str(fit_dir)]) == 0
     doc = json.loads((fit_dir / "fit.json").read_text())
     assert doc["model"]["type"] == "Preisach" and doc["settings"]["structure"] == "preisach"
     assert np.isfinite(doc["metrics"]["validation"]["rmse"]) and min(doc["model"]["w"]) >= 0.0
     model, _ = sj.load_model_file(fit_dir / "fit.json")
-    # the fit beats a constant on held-out data (the record is a hysteresis loop)
-    assert doc["metrics"]["validation"]["rmse"] < 0.5 * np.std(np.genfromtxt(rec, delimiter=",", names=True)["displacement_mm"])
+    # held out (the last 30 %), the loop is predicted to a small fraction of the output's spread
+    assert doc["metrics"]["validation"]["rmse"] < 0.2 * np.std(
+        np.genfromtxt(record, delimiter=",", names=True)["displacement_mm"]
+    )
+    rec = _short_record(tmp_path, datasets_dir)
     fit = str(fit_dir / "fit.json")
     loop = ["--model", fit, "--kp", "0.5", "--ki", "2", "--K", "2", "--duration", "4", "--dt", "0.05"]
     assert main(["control", *loop, "--out", str(tmp_path / "c")]) == 0
@@ -219,6 +235,7 @@ def test_cli_fit_preisach_then_control_sweep_and_sample(tmp_path, datasets_dir, 
     assert model.n_relays > 100  # the default grid: sampling its weights explicitly is left to small grids (below)
 
 
+@pytest.mark.slow  # ~7 s: the explicit (non-marginalised) weights; the default path is tested above
 def test_cli_sample_preisach_weights_explicitly(tmp_path, datasets_dir):
     rec = _short_record(tmp_path, datasets_dir, n=200)
     d = np.genfromtxt(rec, delimiter=",", names=True)

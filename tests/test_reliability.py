@@ -642,3 +642,56 @@ def test_ctrl_c_inside_a_destructor_ends_the_run_without_a_traceback(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=60, cwd=tmp_path)
     assert r.returncode == 130, r.stderr
     assert r.stderr.strip().splitlines() == ["smafl control: interrupted"], r.stderr
+
+
+# -- figures: a unit on every axis ---------------------------------------------------------------------
+
+
+def _labels_with_units(fig):
+    """Every axis label of ``fig`` that is set names a unit in parentheses; returns the labels."""
+    labels = []
+    for ax in fig.axes:
+        if not ax.axison:
+            continue
+        for label in (ax.get_xlabel(), ax.get_ylabel()):
+            if label:
+                assert "(" in label and label.rstrip().endswith(")"), f"axis label without a unit: {label!r}"
+                labels.append(label)
+    return labels
+
+
+def test_report_figures_have_units_on_every_axis(tmp_path):
+    import matplotlib.pyplot as plt
+
+    from smafl_jax import _plots_bayes as pb
+    from smafl_jax import _report
+    from smafl_jax._diagnose import make_split
+    from smafl_jax._reportdoc import axis_label
+
+    assert axis_label("displacement_mm") == "displacement (mm)"
+    assert axis_label("temperature_front_C") == "temperature front (°C)"
+    assert axis_label("length_signal") == "length signal (unit not given)"  # says so instead of inventing one
+    assert axis_label("pos", {"pos": "mm"}) == "pos (mm)"
+    rng = np.random.default_rng(1)
+    s = rng.normal(size=(400, 2))
+    figs = [pb.corner_figure(s, ["thermal.k1", "noise.sigma"], output_unit="mm")]
+    figs.append(pb.trace_figure(s.reshape(50, 8, 2), ["thermal.k1", "noise.sigma"], 10, output_unit="mm"))
+    t = np.arange(30.0)
+    f = rng.normal(size=(5, 30))
+    figs.append(pb.predictive_time_figure(t, t, f, f, np.ones(30, bool), ylabel="displacement_mm")[0])
+    figs.append(pb.predictive_loop_figure(t, t, f, np.ones(30, bool), xlabel="voltage_V", ylabel="displacement"))
+    labels = [lab for fig in figs for lab in _labels_with_units(fig)]
+    assert "thermal.k1 (1/s)" in labels and "noise.sigma (mm)" in labels and "displacement (mm)" in labels
+    for fig in figs:
+        plt.close(fig)
+    # the diagnosis plot, on the output column's unit
+    rec = sj.load_record(_short_record(tmp_path, n=300))
+    split = make_split(rec)
+    captured = []
+    orig = _report.atomic_savefig
+    try:
+        _report.atomic_savefig = lambda fig, path: captured.append(fig)
+        _report._plot(tmp_path / "r.png", split, lambda seg: seg.y, "t", axis_label(rec.output_name))
+    finally:
+        _report.atomic_savefig = orig
+    assert {"displacement\n(mm)", "residual\n(mm)"} <= set(_labels_with_units(captured[0]))

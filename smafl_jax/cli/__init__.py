@@ -114,16 +114,22 @@ def _blas_threads():
     not loaded yet (the program itself); threadpoolctl, when installed, limits already loaded libraries
     (``main`` called in-process).
     """
-    if "OPENBLAS_NUM_THREADS" in os.environ:
-        return contextlib.nullcontext()
+    global _BLAS_ENV_SET
+    if "OPENBLAS_NUM_THREADS" in os.environ and not _BLAS_ENV_SET:
+        return contextlib.nullcontext()  # the user's choice
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"  # read by each BLAS library when it loads
+    _BLAS_ENV_SET = True
     if "numpy" not in sys.modules:
-        os.environ["OPENBLAS_NUM_THREADS"] = "1"
         return contextlib.nullcontext()
     try:
+        import scipy.linalg  # noqa: F401  (load SciPy's own OpenBLAS now, so that the limit reaches it too)
         from threadpoolctl import threadpool_limits
     except ImportError:
         return contextlib.nullcontext()
     return threadpool_limits(limits=1, user_api="blas")
+
+
+_BLAS_ENV_SET = False
 
 
 #: Seconds an interrupted command has to reach its own exit path before the watchdog ends it.
@@ -182,7 +188,9 @@ def _install_interrupt_watchdog(name):
             if first is not None:
                 _interrupted_exit(name)  # second Ctrl-C
             first = time.monotonic()
-            threading.Timer(INTERRUPT_GRACE_S, _interrupted_exit, (name,)).start()
+            timer = threading.Timer(INTERRUPT_GRACE_S, _interrupted_exit, (name,))
+            timer.daemon = True
+            timer.start()
 
     threading.Thread(target=watch, name="smafl-interrupt-watchdog", daemon=True).start()
     previous = sys.unraisablehook

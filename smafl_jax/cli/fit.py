@@ -86,10 +86,10 @@ def add_parser(sub):
     )
     p.add_argument(
         "--memory",
-        choices=("fitted", "rule"),
-        default="fitted",
-        help="operators' state at t=0: fitted (each operator's place between its bounds is trained; one record) or "
-        "rule (the model's init rule, descended)",
+        choices=("auto", "fitted", "rule"),
+        default="auto",
+        help="operators' state at t=0: fitted (each operator's place between its bounds is trained; one record), "
+        "rule (the model's init rule, descended), or auto (both refined, the validation samples choose)",
     )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")

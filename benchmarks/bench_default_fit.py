@@ -1,0 +1,65 @@
+"""Default `smafl fit` wall time on a 30 000-sample record (issue 18: under 60 s on 2 cores).
+
+One clean record of 20 minutes at 25 Hz from the independent numpy plant (tests/indep_plant.py, PWM
+drive, cold start; quick: 5 minutes), fitted with every default of `fit_record` (= `smafl fit REC`:
+structure, start screening, joint (k1, u0) search, fitted operator memory, split refinement, whole-record
+refit), in a fresh process state (JIT compilation included, as a user pays it).  Side by side, in the same
+process on the same record: the profiled start alone (``max_steps=0``: screening and variable projection,
+no joint refinement), so the row shows what the gradient refinement costs.
+Ratio = ours seconds / profiled-only seconds.
+
+    python -m benchmarks.bench_default_fit [--quick]
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+try:
+    from ._common import progress, row
+except ImportError:  # run as a script
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from benchmarks._common import progress, row
+
+ROOT = Path(__file__).resolve().parents[1]
+RATIO_MEANING = "default fit seconds / profiled-start-only seconds (what the joint refinement costs)"
+
+
+def run(quick=False):
+    sys.path.insert(0, str(ROOT / "tests"))
+    import indep_plant
+
+    import smafl_jax as sj
+    from smafl_jax._report_fit import fit_record
+
+    minutes = 5.0 if quick else 20.0
+    r = indep_plant.make_record(7, drive="pwm", rate_hz=25, minutes=minutes, start="cold")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "rec.csv"
+        indep_plant.write_csv(path, r)
+        rec = sj.load_record(path)
+        seconds = {}
+        for label, opts in (("default", {}), ("profiled only", {"max_steps": 0})):
+            progress(f"default_fit: {label} on {len(rec)} samples")
+            t0 = time.perf_counter()
+            _, doc, _ = fit_record(rec, **opts)
+            seconds[label] = time.perf_counter() - t0
+            progress(f"default_fit: {label}: {seconds[label]:.1f} s, train RMSE {doc['metrics']['train']['rmse']:.4g}")
+    return [
+        row(
+            f"default smafl fit, {len(rec)} samples (goal < 60 s)",
+            seconds["default"],
+            seconds["profiled only"],
+            "s",
+            note=f"independent PWM record, {minutes:g} min at 25 Hz; JIT compilation included",
+            n_samples=len(rec),
+        )
+    ]
+
+
+if __name__ == "__main__":
+    for r_ in run(quick="--quick" in sys.argv):
+        print(r_)
