@@ -81,6 +81,10 @@ def _registered(name):
         from . import _load_all  # the package imports its modules lazily; registration happens on import
 
         _load_all()
+    if name not in _REGISTRY:  # a hysteresis model registered in _choices.HYSTERESIS but not (yet) a public export
+        from ._hysteresis import hysteresis_models
+
+        hysteresis_models()
     return _REGISTRY.get(name)
 
 
