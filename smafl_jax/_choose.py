@@ -226,7 +226,8 @@ def screen_start(
             losses = [r[0] for k, r in results.items() if k[:2] == (sign, inp)]
             say(
                 f"  start screening: output {'rises' if sign > 0 else 'falls'}, hysteresis sees {inp}: best profiled loss "
-                f"{min(losses, default=np.inf):.6g} ({len(table)}/{n_cand} candidates, {time.perf_counter() - t_all:.0f} s)"
+                f"{min(losses, default=np.inf):.6g} ({len(table)}/{n_cand} candidates, {time.perf_counter() - t_all:.0f} s, "
+                f"about {(time.perf_counter() - t_all) / max(len(table), 1) * max(n_cand - len(table), 0):.0f} s left)"
             )
 
     # Orientation first, on the first two starts (a wrong sign costs 10-100x in loss whatever the start);
