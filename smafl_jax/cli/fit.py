@@ -36,7 +36,7 @@ def add_parser(sub):
         choices=MODELS,
         default="auto",
         help="auto (cascade for a drive voltage, else eupi; thresholds and tilts trained), eupi (paper eq. 2), "
-        "cascade (thermal + EUPI), joule (eq. 7 lag); default auto",
+        "cascade (thermal + EUPI), joule (eq. 7 lag), or any other registered hysteresis model (preisach); default auto",
     )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
     p.add_argument(
