@@ -8,9 +8,13 @@ memory, thermal scheme, sensor).  Each record is fitted on its first 70 % and sc
     python experiments/base_fit_before_after.py /tmp/old   /tmp/old.json  10 7 11
     python experiments/base_fit_before_after.py .          /tmp/new.json  10 7 11
     python experiments/base_fit_before_after.py --table /tmp/old.json /tmp/new.json
+
+SMAFL_FIT_OPTS='{"max_steps": 40}' (JSON) passes keyword options to `fit_record`, to compare settings of one tree.
+SMAFL_CELLS='PWM' keeps only the cells whose name contains that text.
 """
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -49,6 +53,8 @@ CELLS = {
     "PWM, length sensor, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold", orientation="length"),
     "multisine, half-warm, 10 Hz": dict(drive="multisine", rate_hz=10, start="mid"),
 }
+OPTS = json.loads(os.environ.get("SMAFL_FIT_OPTS", "{}"))
+CELLS = {k: v for k, v in CELLS.items() if os.environ.get("SMAFL_CELLS", "") in k}
 rows = []
 for seed in seeds:
     for name, kw in CELLS.items():
@@ -63,7 +69,7 @@ for seed in seeds:
         p70 = f"/tmp/smafl_before_after/m70_{tag}.csv"
         sj.atomic_write_csv(p70, {"time_s": rec.time[:h0], "voltage_V": rec.u[:h0], "displacement_mm": rec.y[:h0]})
         t0 = time.time()
-        model, doc, _ = fit_record(sj.load_record(p70))
+        model, doc, _ = fit_record(sj.load_record(p70), **OPTS)
         sec = time.time() - t0
         yh = np.asarray(sj.simulate(model, rec.u, rec.dt))
         e = yh - rec.y
@@ -77,6 +83,7 @@ for seed in seeds:
             k1_true=r["truth"]["thermal"]["k1"],
             k1=float(getattr(getattr(model, "thermal", None), "k1", np.nan)),
             memory=r["truth"]["hysteresis"]["memory"]["kind"],
+            opts=OPTS,
         )
         rows.append(row)
         print(json.dumps(row), flush=True)

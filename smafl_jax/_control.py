@@ -215,7 +215,18 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
         cstate, yhat0, u20 = (), jnp.zeros(()), jnp.zeros(())
     zero = jnp.zeros(())
     # carry: plant state, y, I, D, previous measurement, compensator state, u2, yhat, accumulators
-    carry0 = (pstate, y0, zero, zero, y0, cstate, u20, yhat0, (zero, zero, zero, zero, zero))
+    # the drive's extremes over the whole record: fitted models are only trusted inside their training input range
+    carry0 = (
+        pstate,
+        y0,
+        zero,
+        zero,
+        y0,
+        cstate,
+        u20,
+        yhat0,
+        (zero, zero, zero, zero, zero, jnp.asarray(jnp.inf), jnp.asarray(-jnp.inf)),
+    )
 
     def measure(y, nk):
         ym = y + nk
@@ -247,8 +258,16 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
         sat = (raw > pid.umax) | (raw < pid.umin)
         err = r_k - y  # true tracking error at sample k (eq. 8 uses y_d(k) - y(k))
         w = (t_k >= loop.eval_start - 0.5 * dt).astype(jnp.float64)  # metrics window
-        a_abs, a_sq, a_max, a_sat, a_n = acc
-        acc = (a_abs + w * jnp.abs(err), a_sq + w * err * err, jnp.maximum(a_max, w * jnp.abs(err)), a_sat + w * sat, a_n + w)
+        a_abs, a_sq, a_max, a_sat, a_n, u_lo, u_hi = acc
+        acc = (
+            a_abs + w * jnp.abs(err),
+            a_sq + w * err * err,
+            jnp.maximum(a_max, w * jnp.abs(err)),
+            a_sat + w * sat,
+            a_n + w,
+            jnp.minimum(u_lo, u),
+            jnp.maximum(u_hi, u),
+        )
         pst, y_next = plant_step(loop.plant, pst, u, dt)
         out = (
             {
@@ -269,13 +288,15 @@ def _scan_loop(loop: ClosedLoop, dt, record: bool):
 
     times = jnp.arange(n) * dt
     carry, out = jax.lax.scan(step, carry0, (ref, noise, times))
-    a_abs, a_sq, a_max, a_sat, a_n = carry[-1]
+    a_abs, a_sq, a_max, a_sat, a_n, u_lo, u_hi = carry[-1]
     a_n = jnp.maximum(a_n, 1.0)  # an empty window gives zeros rather than NaN
     metrics = {
         "e_mean_mm": a_abs / a_n,
         "rmse_mm": jnp.sqrt(a_sq / a_n),
         "max_abs_error_mm": a_max,
         "saturated_fraction": a_sat / a_n,
+        "u_min_V": u_lo,
+        "u_max_V": u_hi,
     }
     return metrics, out
 
@@ -305,7 +326,8 @@ def simulate_closed_loop(loop: ClosedLoop, dt):
     """Run one configuration; returns ``(metrics, trajectories)`` (dicts of arrays).
 
     Trajectories: ``time_s, reference, y, y_meas, error, u, u1 (PID), u2 (I-I), integral, saturated``.
-    Metrics: ``e_mean_mm`` (eq. 8), ``rmse_mm``, ``max_abs_error_mm``, ``saturated_fraction``.
+    Metrics: ``e_mean_mm`` (eq. 8), ``rmse_mm``, ``max_abs_error_mm``, ``saturated_fraction`` (over the
+    evaluation window), ``u_min_V`` / ``u_max_V`` (drive extremes over the whole record).
     """
     if np.ndim(loop.reference) != 1:
         raise ValueError(f"reference must be 1-D for a single run, got shape {np.shape(loop.reference)}; use smafl_jax.sweep")

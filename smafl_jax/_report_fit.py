@@ -24,6 +24,7 @@ from ._hysteresis import hysteresis_class, hysteresis_of
 from ._io import atomic_savefig, atomic_write_json, atomic_write_text, model_to_dict
 from ._joule_lag import JouleLag
 from ._metrics import metrics
+from ._range import EFFECTIVE_RULE, effective_values, value_range
 from ._simulate import simulate
 from ._split import split_masks
 from ._thermal import JouleThermal
@@ -278,6 +279,11 @@ def fit_record(
     from ._multi_record import add_record_extras  # baselines, data checks, loading notes, training input range
 
     add_record_extras(doc, record, train, val, yhat)
+    x_eff = effective_values(final, record.u, record.dt)
+    if x_eff is not None and np.all(np.isfinite(x_eff)):
+        # what the saved model's hysteresis saw in training: simulate/control/sweep warn when a new input leaves it
+        doc["data"]["effective_input_range"] = value_range(x_eff, train)
+        doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
     return final, doc, (train, val, yhat)
 
 

@@ -134,7 +134,7 @@ CHUNK_STEPS = 4_000_000
 
 
 def sweep(base: ClosedLoop, dt, grid: dict, *, mode="product", shard=True, chunk=None, progress=None):
-    """Metrics (e_mean_mm, rmse_mm, max_abs_error_mm, saturated_fraction) for every grid configuration.
+    """Metrics (e_mean_mm, rmse_mm, max_abs_error_mm, saturated_fraction, u_min_V, u_max_V) for every grid configuration.
 
     The configurations run in chunks of ``chunk`` (default: about `CHUNK_STEPS`
     sample steps per chunk, rounded to a multiple of the device count; the last

@@ -148,8 +148,8 @@ def build_loop(args):
         check_option(name, getattr(args, name))
     if args.model is None:
         args.model = _default_model()
-    model, _ = load_model_file(args.model)
-    plant = load_model_file(args.plant)[0] if args.plant else model
+    model, model_doc = load_model_file(args.model)
+    plant, plant_doc = load_model_file(args.plant) if args.plant else (model, model_doc)
     ref = load_reference(args.reference, args.dt, args.duration)
     if len(ref) < 2:
         raise UserInputError("the reference has fewer than 2 samples: increase --duration or decrease --dt")
@@ -191,8 +191,24 @@ def build_loop(args):
         "seed": args.seed,
         "anti_windup": "conditional integration",
         "plant_initial_state": "at rest at 0 V",
+        # the ranges the plant model was fitted on: a drive outside them runs the model where no data was
+        "plant_fitted_ranges": {k: (plant_doc.get("data") or {}).get(k) for k in ("input_range", "effective_input_range")},
     }
     return loop, settings
+
+
+def drive_range_checks(plant, settings, u, dt):
+    """Range checks of the controller's drive ``u`` against the plant model's fit, warnings printed to stderr."""
+    from .._range import model_range_checks
+
+    fitted = settings.get("plant_fitted_ranges") or {}
+    checks = model_range_checks(plant, fitted, np.asarray(u), dt, "drive u")
+    for chk in checks:
+        if chk.get("warning"):
+            print(f"warning: plant model: {chk['warning']}", file=sys.stderr)
+        elif chk.get("note"):
+            print(f"note: plant model: {chk['note']}", file=sys.stderr)
+    return checks
 
 
 def add_parser(sub):
@@ -221,6 +237,7 @@ def run(args):
     if not all(np.isfinite(v) for v in metrics.values()):
         raise UserInputError("the closed loop produced non-finite values (unstable gains for this sample time?)")
     t = traj["time_s"]
+    range_checks = drive_range_checks(loop.plant, settings, traj["u"], args.dt)
     atomic_write_csv(
         out / "trajectory.csv",
         {k: traj[k] for k in ("time_s", "reference", "y", "y_meas", "error", "u", "u1", "u2", "saturated")},
@@ -245,7 +262,7 @@ def run(args):
     ax.set_ylabel("tracking error y_d - y (mm)")
     atomic_savefig(fig, out / "error.png")
     plt.close(fig)
-    atomic_write_json(out / "metrics.json", {**metrics, "settings": settings})
+    atomic_write_json(out / "metrics.json", {**metrics, "settings": settings, "range_checks": range_checks})
     print(
         f"e_mean {metrics['e_mean_mm']:.4g} mm, rmse {metrics['rmse_mm']:.4g} mm, max |e| {metrics['max_abs_error_mm']:.4g} mm, "
         f"saturated {100 * metrics['saturated_fraction']:.1f}% -> {out}"

@@ -1,9 +1,9 @@
 """``smafl simulate PARAMS.json INPUT.csv --out OUT.csv [--resample DT|auto]``: run a saved model on an input record.
 
-Warns (stderr, and ``input_range_check`` in the ``--metrics`` JSON) when the
-input leaves the range the model was fitted on (``data.input_range`` of a
-fit.json): by how much and for how many samples.  A model file without that
-range is run with a note that the range could not be checked.
+Warns (stderr, and ``input_range_check`` / ``effective_input_range_check`` in the ``--metrics`` JSON)
+when the input, or a cascade's hysteresis input, leaves the range the model was fitted on
+(``data.input_range`` / ``data.effective_input_range`` of a fit.json): when, for how long and by how much.
+A model file without that range is run with a note that the range could not be checked.
 """
 
 from __future__ import annotations
@@ -77,11 +77,6 @@ def run(args):
     rec = load_record(args.input_csv, input=in_col, require_output=False, min_samples=2, resample=parse_resample(args.resample))
     for note in rec.processing:
         print(f"note: loading {rec.name}: {note}", file=sys.stderr)
-    range_check = input_range_check(rec.u, data_info.get("input_range"), rec.input_name)
-    if range_check.get("warning"):
-        print(f"warning: {range_check['warning']}", file=sys.stderr)
-    elif range_check.get("note"):
-        print(f"note: {range_check['note']}", file=sys.stderr)
     fit_dt = data_info.get("sample_time_s")
     if fit_dt and not np.isclose(fit_dt, rec.dt, rtol=0.02):
         print(
@@ -97,6 +92,15 @@ def run(args):
         model, start = with_initial_state(model, args.initial_state, rec.u, y_meas, rec.dt)
         detail = f": thermal {start['thermal']}, operator memory {start['memory']}" if "thermal" in start else ""
         print(f"note: initial state {args.initial_state}{detail}", file=sys.stderr)
+    from .._range import model_range_checks
+
+    checks = model_range_checks(model, data_info, rec.u, rec.dt, rec.input_name)
+    range_check, effective_check = checks[0], (checks[1] if len(checks) > 1 else None)
+    for chk in checks:
+        if chk.get("warning"):
+            print(f"warning: {chk['warning']}", file=sys.stderr)
+        elif chk.get("note"):
+            print(f"note: {chk['note']}", file=sys.stderr)
     y = np.asarray(simulate(model, rec.u, rec.dt))
     if not np.all(np.isfinite(y)):
         raise UserInputError(f"{args.params}: the model produced non-finite output on {args.input_csv}")
@@ -143,57 +147,15 @@ def run(args):
                 "n_samples": len(rec),
                 **scored,
                 "input_range_check": range_check,
+                "effective_input_range_check": effective_check,
                 "processing": list(rec.processing),
             },
         )
     return 0
 
 
-def input_range_check(u, fitted_range, column: str = "input") -> dict:
-    """How far and how often ``u`` leaves ``fitted_range`` = [lo, hi] (the fit's training input range).
+def input_range_check(u, fitted_range, column: str = "input", dt: float | None = None) -> dict:
+    """How far and how often ``u`` leaves ``fitted_range`` (see `smafl_jax._range.range_check`)."""
+    from .._range import range_check
 
-    Returns a JSON-able dict: the range, samples below and above, the largest
-    excursions (in input units and in % of the fitted span) and a ``warning``
-    sentence when any sample is outside; ``note`` when the range is unknown.
-    """
-    u = np.asarray(u, dtype=np.float64)
-    if not (isinstance(fitted_range, (list, tuple)) and len(fitted_range) == 2):
-        return {
-            "fitted_range": None,
-            "checked": False,
-            "note": "the model file carries no training input range (not a fit.json of this version): range not checked",
-        }
-    lo, hi = float(fitted_range[0]), float(fitted_range[1])
-    span = hi - lo
-    below, above = u < lo, u > hi
-    n_out = int(below.sum() + above.sum())
-    out = {
-        "fitted_range": [lo, hi],
-        "checked": True,
-        "input_range": [float(u.min()), float(u.max())],
-        "n_samples": int(u.size),
-        "n_below": int(below.sum()),
-        "n_above": int(above.sum()),
-        "fraction_outside": n_out / u.size,
-        "max_below": float(lo - u.min()) if below.any() else 0.0,
-        "max_above": float(u.max() - hi) if above.any() else 0.0,
-    }
-    if n_out:
-        parts = []
-        if above.any():
-            parts.append(
-                f"{out['n_above']} above the max by up to {out['max_above']:.4g}"
-                + (f" ({100 * out['max_above'] / span:.1f} % of the fitted span)" if span > 0 else "")
-                + f", first at sample {int(np.flatnonzero(above)[0])}"
-            )
-        if below.any():
-            parts.append(
-                f"{out['n_below']} below the min by up to {out['max_below']:.4g}"
-                + (f" ({100 * out['max_below'] / span:.1f} % of the fitted span)" if span > 0 else "")
-                + f", first at sample {int(np.flatnonzero(below)[0])}"
-            )
-        out["warning"] = (
-            f"input '{column}' leaves the range the model was fitted on [{lo:.6g}, {hi:.6g}]: {n_out} of {u.size} samples "
-            f"({100 * n_out / u.size:.1f} %) outside ({'; '.join(parts)}); the model extrapolates there"
-        )
-    return out
+    return range_check(u, fitted_range, column, dt=dt)

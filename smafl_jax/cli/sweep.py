@@ -85,6 +85,31 @@ def _progress_printer(n, stream=None, every_s=2.0):
     return progress
 
 
+def sweep_range_summary(metrics, settings) -> dict:
+    """How many configurations drive the plant model outside the input range it was fitted on, and how far."""
+    rng = (settings.get("plant_fitted_ranges") or {}).get("input_range")
+    if not (isinstance(rng, (list, tuple)) and len(rng) == 2):
+        return {"checked": False, "note": "the plant model file carries no training input range: drive range not checked"}
+    lo, hi = float(rng[0]), float(rng[1])
+    u_hi, u_lo = np.asarray(metrics["u_max_V"]), np.asarray(metrics["u_min_V"])
+    out_cfg = (u_hi > hi) | (u_lo < lo)
+    doc = {
+        "checked": True,
+        "fitted_range": [lo, hi],
+        "n_configurations": int(out_cfg.size),
+        "n_outside": int(out_cfg.sum()),
+        "max_above": float(max(np.max(u_hi) - hi, 0.0)),
+        "max_below": float(max(lo - np.min(u_lo), 0.0)),
+    }
+    if doc["n_outside"]:
+        doc["warning"] = (
+            f"{doc['n_outside']} of {doc['n_configurations']} configurations drive the plant model outside the input range it "
+            f"was fitted on [{lo:.4g}, {hi:.4g}] (up to {doc['max_above']:.4g} above, {doc['max_below']:.4g} below; per "
+            "configuration in sweep.csv, columns u_min_V / u_max_V): their metrics extrapolate the model"
+        )
+    return doc
+
+
 def add_parser(sub):
     p = sub.add_parser("sweep", help="heat map of closed-loop e_mean over two swept parameters")
     add_loop_arguments(p)
@@ -125,6 +150,9 @@ def run(args):
     except ValueError as exc:
         raise UserInputError(str(exc)) from None
     m = res.metrics
+    range_summary = sweep_range_summary(m, settings)
+    if range_summary.get("warning"):
+        print(f"warning: {range_summary['warning']}", file=sys.stderr)
     X, Y = np.meshgrid(xv, yv, indexing="ij")
     cols = {xn: X.ravel(), yn: Y.ravel(), **{k: v.ravel() for k, v in m.items()}}
     e = np.where(np.isfinite(m["e_mean_mm"]), m["e_mean_mm"], np.inf).ravel()
@@ -149,7 +177,10 @@ def run(args):
     atomic_write_csv(out / "best.csv", {k: v[order] for k, v in cols.items()})
     atomic_write_bytes(out / "heatmap.png", buf.getvalue())
     best = {k: float(v[order[0]]) for k, v in cols.items()}
-    atomic_write_json(out / "metrics.json", {"best": best, "n_configurations": n, "axes": {xn: xv, yn: yv}, "settings": settings})
+    atomic_write_json(
+        out / "metrics.json",
+        {"best": best, "n_configurations": n, "axes": {xn: xv, yn: yv}, "settings": settings, "range_check": range_summary},
+    )
     print(f"{'rank':>4} {xn:>10} {yn:>10} {'e_mean_mm':>12} {'rmse_mm':>10} {'saturated':>9}")
     for i, j in enumerate(order):
         print(

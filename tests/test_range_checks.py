@@ -1,0 +1,72 @@
+"""Trained-range checks (issue 18): fit stores raw and effective ranges; simulate, control and sweep warn."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import smafl_jax as sj
+from smafl_jax._range import range_check
+from smafl_jax.cli import main
+
+DATASETS = Path(__file__).resolve().parents[1] / "datasets"
+
+
+def test_range_check_reports_each_stretch_with_time_and_size():
+    dt = 0.1
+    u = np.zeros(100)
+    u[10:15] = 5.0  # 0.5 s above, 1 V over
+    u[40:60] = 4.5  # 2 s above, longest
+    u[80] = -1.0  # one sample below
+    c = range_check(u, [0.0, 4.0], "v", dt=dt)
+    assert (c["n_above"], c["n_below"], c["n_exits"]) == (25, 1, 3)
+    assert [(e["start_sample"], e["end_sample"]) for e in c["exits"]] == [(10, 15), (40, 60), (80, 81)]
+    assert c["exits"][1]["start_s"] == pytest.approx(4.0) and c["exits"][1]["duration_s"] == pytest.approx(2.0)
+    assert c["max_above"] == pytest.approx(1.0) and c["max_below"] == pytest.approx(1.0)
+    # the warning names when (the longest stretch and the first exit on each side) and how far
+    w = c["warning"]
+    assert "the longest at 4 s for 2 s" in w and "first at 1 s for 0.5 s" in w and "25.0 % of the fitted span" in w
+    assert "warning" not in range_check(u, [-1.0, 5.0], dt=dt)
+    assert not range_check(u, None)["checked"]
+
+
+def test_fit_stores_effective_range_of_the_saved_model(tmp_path):
+    from smafl_jax._report_fit import fit_record
+
+    rec = sj.load_record(DATASETS / "main_loop.csv")
+    model, doc, (train, _, _) = fit_record(rec, model="cascade", max_steps=0, refit=False)
+    x = np.asarray(model.hysteresis_input(rec.u, rec.dt))
+    assert doc["data"]["effective_input_range"] == pytest.approx([x[train].min(), x[train].max()], rel=1e-12)
+    assert doc["data"]["input_range"] == pytest.approx([rec.u[train].min(), rec.u[train].max()], rel=1e-12)
+
+
+@pytest.fixture
+def narrow_model(tmp_path):
+    """The bundled truth cascade, saved as if it had been fitted on drives of 0-2 V only."""
+    model = sj.load_model(DATASETS / "truth.json")
+    x = np.asarray(model.hysteresis_input(np.linspace(0.0, 2.0, 400), 0.05))
+    path = tmp_path / "narrow.json"
+    sj.save_model(path, model, data={"input_range": [0.0, 2.0], "effective_input_range": [float(x.min()), float(x.max())]})
+    return path
+
+
+def test_control_and_sweep_warn_when_the_drive_leaves_the_fitted_range(tmp_path, narrow_model, capsys):
+    loop = ["--model", str(narrow_model), "--kp", "0.5", "--ki", "2", "--duration", "6", "--dt", "0.05"]
+    assert main(["control", *loop, "--out", str(tmp_path / "c")]) == 0
+    err = capsys.readouterr().err
+    assert "warning: plant model: input 'drive u' leaves the range the model was fitted on" in err
+    m = json.loads((tmp_path / "c" / "metrics.json").read_text())
+    u = np.genfromtxt(tmp_path / "c" / "trajectory.csv", delimiter=",", names=True)["u"]
+    assert m["u_max_V"] == pytest.approx(u.max()) and m["u_min_V"] == pytest.approx(u.min())
+    raw = m["range_checks"][0]
+    assert raw["n_above"] == int(np.sum(u > 2.0)) > 0 and raw["exits"][0]["start_s"] == pytest.approx(
+        0.05 * np.flatnonzero(u > 2.0)[0]
+    )
+    assert m["range_checks"][1]["what"] == "effective input"
+    assert main(["sweep", *loop, "--x", "kp=0.05,0.5", "--y", "ki=0.01,2", "--out", str(tmp_path / "sw")]) == 0
+    err = capsys.readouterr().err
+    s = json.loads((tmp_path / "sw" / "metrics.json").read_text())["range_check"]
+    rows = np.genfromtxt(tmp_path / "sw" / "sweep.csv", delimiter=",", names=True)
+    assert s["n_outside"] == int(np.sum(rows["u_max_V"] > 2.0)) and s["n_configurations"] == 4
+    assert (s["n_outside"] > 0) == ("configurations drive the plant model outside" in err)
