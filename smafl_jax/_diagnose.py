@@ -60,22 +60,6 @@ import numpy as np
 
 from . import _config  # noqa: F401
 from ._cascade import Cascade
-from ._effects import (
-    EFFECTS,
-    AmbientDrift,
-    AsymmetricCooling,
-    Creep,
-    Delay,
-    ExtendedModel,
-    InputWarp,
-    LoadDependence,
-    NonlinearCooling,
-    OutputSaturation,
-    RateDependence,
-    ResistanceTC,
-    SensorLag,
-    StrainAccumulation,
-)
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._metrics import metrics
@@ -85,6 +69,7 @@ from ._progress import LOGGER as PROGRESS
 from ._progress import Steps
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
 from ._thermal import JouleThermal
+from .effects import EFFECTS, ExtendedModel, Log, effect_rank
 
 __all__ = ["choose_base", "make_split", "fit_extended", "effect_evidence", "diagnose", "Segment", "Split"]
 
@@ -271,15 +256,15 @@ def _sim(model, u, dt, load):
 
 
 _features_jit = eqx.filter_jit(lambda model, u, dt: model.features(u, dt))
-_accumulation_jit = eqx.filter_jit(lambda model, u, dt: model.accumulation_column(u, dt))
+_linear_columns_jit = eqx.filter_jit(lambda model, u, dt: model.linear_columns(u, dt))
 
 
 def _features(model, u, dt):
     return padded_call(_features_jit, model, (u,), dt)
 
 
-def _accumulation(model, u, dt):
-    return padded_call(_accumulation_jit, model, (u,), dt)
+def _linear_columns(model, u, dt):
+    return padded_call(_linear_columns_jit, model, (u,), dt)
 
 
 def simulate_segment(model, seg):
@@ -323,53 +308,85 @@ def _bvls(A, b, nonneg):
 
 
 def _design(model, segs):
-    """Stacked design matrix (EUPI gains [+ strain_accumulation c] [+ load offset]) and targets over the scored samples."""
-    ld = model.get("load_dependence")
-    sa = model.get("strain_accumulation")
+    """Stacked design matrix and targets over the scored samples, and the linear effect fields it adds.
+
+    Columns: the hysteresis weights' features, the linear-stage effects' columns (`ExtendedModel.linear_columns`),
+    then each output-stage effect's `profile_design` (the load effect scales them and adds its offset column).
+    Returns ``(A, y, added)``, ``added`` the ``(effect name, field)`` of each column after the weights.
+    """
+    lin = model.linear_column_fields()
+    outs = model.stage_effects("output")
     rows, targets = [], []
+    added = list(lin)
     for s in segs:
         F = np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]
-        if sa is not None:  # c enters linearly, beside the gains (before the output map, as in `ExtendedModel.simulate`)
-            F = np.column_stack([F, np.asarray(_accumulation(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]])
-        if ld is not None:
-            l_ = (np.asarray(s.load)[s.mask] - float(ld.load_ref)) / float(ld.load_scale)
-            F = np.column_stack([F * (1.0 + float(ld.a) * l_)[:, None], l_])
+        if lin:  # linear effect fields enter beside the gains (before the output map, as in `ExtendedModel.simulate`)
+            C = np.asarray(_linear_columns(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]
+            for j in range(len(lin)):
+                F = np.column_stack([F, C[:, j]])
+        t = (np.arange(len(s.u)) * float(s.dt))[s.mask]
+        load = None if s.load is None else np.asarray(s.load)[s.mask]
+        added = list(lin)  # the same for every segment
+        for e in outs:
+            F, fields = e.profile_design(F, t, load)
+            added += [(e.name, f) for f in fields]
         rows.append(F)
         targets.append(np.asarray(s.y, float)[s.mask])
-    return np.concatenate(rows), np.concatenate(targets)
+    return np.concatenate(rows), np.concatenate(targets), added
+
+
+def _compose_links(links):
+    """One `OutputLink` for output maps applied in order (forward composed, inverse reversed, slope by the chain rule)."""
+    if len(links) == 1:
+        return links[0]
+
+    def forward(z):
+        for lk in links:
+            z = lk.forward(z)
+        return z
+
+    def inverse(y):
+        for lk in reversed(links):
+            y = lk.inverse(y)
+        return y
+
+    def slope(z):
+        d = 1.0
+        for lk in links:
+            d = d * lk.slope(z)
+            z = lk.forward(z)
+        return d
+
+    return type(links[0])(forward, inverse, slope)
 
 
 def profile_gains(model, segs, *, gn_steps=8):
-    """Optimal EUPI gains (bounded LS) for the model's nonlinear parameters; returns ``(model, sse)``.
+    """Optimal hysteresis weights (bounded LS) for the model's nonlinear parameters; returns ``(model, sse)``.
 
-    Variable projection: every model here is linear in the EUPI gains except
-    through ``output_saturation``; for that one the gains start from the
-    least-squares fit of the inverse-mapped output and are finished by
-    Gauss-Newton steps, each a bounded least-squares problem.
+    Variable projection: every model here is linear in the weights (and in the linear effect fields, such as
+    the strain-accumulation rate and the load offset) except through a nonlinear output map (an output
+    effect's `profile_link`, output saturation); then the weights start from the least-squares fit of the
+    inverse-mapped output and are finished by Gauss-Newton steps, each a bounded least-squares problem.
     """
     eupi = model.hysteresis
-    sat = model.get("output_saturation")
-    ld = model.get("load_dependence")
-    sa = model.get("strain_accumulation")
-    A, y = _design(model, segs)
+    A, y, added = _design(model, segs)
     if not np.all(np.isfinite(A)):
         return model, np.inf
     nonneg = eupi.nonnegative_columns()
-    if sa is not None:
+    for _ in added:  # linear effect fields are signed
         nonneg = np.r_[nonneg, False]
-    if ld is not None:
-        nonneg = np.r_[nonneg, False]
-    if sat is None:
+    links = [lk for lk in (e.profile_link() for e in model.stage_effects("output")) if lk is not None]
+    if not links:
         theta = _bvls(A, y, nonneg)
         sse = float(np.sum((A @ theta - y) ** 2))
     else:
-        m, w = float(sat.m), float(sat.w)
-        smap = lambda z: m + w * np.tanh((z - m) / w)
-        theta = _bvls(A, m + w * np.arctanh(np.clip((y - m) / w, -0.995, 0.995)), nonneg)
+        link = _compose_links(links)
+        smap = link.forward
+        theta = _bvls(A, link.inverse(y), nonneg)
         sse = float(np.sum((smap(A @ theta) - y) ** 2))
         for _ in range(gn_steps):
             z = A @ theta
-            J = A * (1.0 / np.cosh((z - m) / w) ** 2)[:, None]
+            J = A * link.slope(z)[:, None]
             cand = _bvls(J, y - smap(z) + J @ theta, nonneg)
             sse_c = float(np.sum((smap(A @ cand) - y) ** 2))
             if not sse_c < sse:
@@ -378,11 +395,8 @@ def profile_gains(model, segs, *, gn_steps=8):
             theta, sse = cand, sse_c
             if done:
                 break
-    if ld is not None:
-        model = eqx.tree_at(lambda mm: mm.get("load_dependence").b, model, jnp.asarray(theta[-1]))
-        theta = theta[:-1]
-    if sa is not None:
-        model = eqx.tree_at(lambda mm: mm.get("strain_accumulation").c, model, jnp.asarray(theta[-1]))
+    for name, field in reversed(added):
+        model = eqx.tree_at(lambda mm: getattr(mm.get(name), field), model, jnp.asarray(theta[-1]))
         theta = theta[:-1]
     return model.with_hysteresis(eupi.with_linear_weights(jnp.asarray(theta))), sse
 
@@ -392,80 +406,32 @@ def linear_init(model, segs):
     return profile_gains(model, segs)[0]
 
 
-#: Nonlinear (profiled-over) parameters: (effect name or "k1", field, kind, step).
-_NONLINEAR = {
-    "k1": [("k1", "log", 0.5)],
-    "delay": [("tau", "log", 0.5)],
-    "sensor_lag": [("tau", "log", 0.5)],
-    "ambient_drift": [("drift", "lin", 0.005)],
-    "resistance_tc": [("beta", "log", 0.5)],
-    "asymmetric_cooling": [("log_ratio", "lin", 0.2)],
-    "nonlinear_cooling": [("gamma", "log", 0.5)],
-    "input_warp": [("c", "lin", 0.1), ("b", "log", 0.5)],
-    "rate_dependence": [("c", "log", 0.5)],
-    # creep is bounded (see `Creep`): g = G_MAX tanh(p), log tau = logistic map onto the fitting range, so a fit
-    # cannot turn the relaxation into a huge-gain integrator (g -> -inf, tau >> record: a ramp)
-    "creep": [("g", "tanh", 0.05), ("tau", "logbox", 0.5)],
-    "output_saturation": [("m", "lin", "y"), ("w", "log", 0.2)],
-    "load_dependence": [("a", "lin", 0.05)],
-    # c is linear (profiled with the gains): no nonlinear parameter
-    "strain_accumulation": [],
-}
+#: The thermal rate of a `Cascade` base: searched on a log scale like the effects' positive parameters.
+_K1 = Log()
+_K1_STEP = 0.5
 
 
 def _phi_layout(model, ctx):
+    """Nonlinear (profiled-over) parameters: ``(effect name or None for k1, field, Transform, step)``, in order."""
     lay = []
     if isinstance(model.base, Cascade):
-        lay.append((None, "k1", "log", 0.5))
+        lay.append((None, "k1", _K1, _K1_STEP))
     for e in model.effects:
-        for field, kind, step in _NONLINEAR[e.name]:
-            if kind == "logbox":  # bounded positive parameter: (kind, log lower, log upper)
-                kind = ("logbox", *np.log(_bounds(e.name, field, ctx)))
-            lay.append((e.name, field, kind, 0.05 * ctx["y_range"] if step == "y" else step))
+        lay += [(e.name, p.field, p.transform, p.step) for p in e.nonlinear(ctx)]
     return lay
-
-
-def _bounds(name, field, ctx):
-    """Fitting range of a bounded positive nonlinear parameter."""
-    if (name, field) == ("creep", "tau"):
-        return Creep.tau_bounds(ctx["dt"], ctx["duration"])
-    raise KeyError((name, field))
-
-
-def _to_phi(v, kind):
-    if kind == "log":
-        return np.log(max(v, 1e-12))
-    if kind == "tanh":  # creep g: |g| <= G_MAX
-        return float(np.arctanh(np.clip(v / Creep.G_MAX, -1.0 + 1e-9, 1.0 - 1e-9)))
-    if isinstance(kind, tuple):  # ("logbox", log lo, log hi)
-        _, llo, lhi = kind
-        f = np.clip((np.log(max(v, 1e-300)) - llo) / (lhi - llo), 1e-6, 1.0 - 1e-6)
-        return float(np.log(f / (1.0 - f)))
-    return v
-
-
-def _from_phi(p, kind):
-    if kind == "log":
-        return float(np.exp(np.clip(p, -30, 30)))
-    if kind == "tanh":
-        return float(Creep.G_MAX * np.tanh(p))
-    if isinstance(kind, tuple):
-        _, llo, lhi = kind
-        return float(np.exp(llo + (lhi - llo) / (1.0 + np.exp(-np.clip(p, -50, 50)))))
-    return float(p)
 
 
 def _get_phi(model, lay):
     out = []
-    for name, field, kind, _ in lay:
+    for name, field, tr, _ in lay:
         v = float(model.base.thermal.k1) if name is None else float(getattr(model.get(name), field))
-        out.append(_to_phi(v, kind))
+        out.append(tr.to_phi(v))
     return np.array(out)
 
 
 def _set_phi(model, lay, phi):
-    for (name, field, kind, _), p in zip(lay, phi):
-        v = jnp.asarray(_from_phi(p, kind))
+    for (name, field, tr, _), p in zip(lay, phi):
+        v = jnp.asarray(tr.from_phi(p))
         if name is None:
             model = eqx.tree_at(lambda m: m.base.thermal.k1, model, v)
         else:
@@ -474,86 +440,20 @@ def _set_phi(model, lay, phi):
     return model
 
 
-def _creep_taus(ctx):
-    """Creep starting/probe time constants (30 s .. 1000 s) clipped inside the fitting range, duplicates dropped.
-
-    Kept a factor 2 off the bounds, where the logistic map of ``_NONLINEAR`` is flat and a simplex would stall.
-    """
-    lo, hi = Creep.tau_bounds(ctx["dt"], ctx["duration"])
-    lo, hi = min(2.0 * lo, np.sqrt(lo * hi)), max(0.5 * hi, np.sqrt(lo * hi))
-    return list(dict.fromkeys(float(np.clip(t, lo, hi)) for t in (30.0, 100.0, 300.0, 1000.0)))
+def _effect_class(name):
+    if name not in EFFECTS:
+        raise UserInputError(f"unknown effect {name!r}; catalogue: {list(EFFECTS)}")
+    return EFFECTS[name]
 
 
 def _effect_grid(name, ctx):
     """Starting points for an effect's nonlinear parameters (the gains come from least squares)."""
-    a = jnp.asarray
-    dt, yr, ym = ctx["dt"], ctx["y_range"], ctx["y_mid"]
-    if name == "delay":
-        return [Delay(tau=a(dt * 2.0**k)) for k in range(6)]
-    if name == "sensor_lag":
-        # lags of 1 to 128 samples: thermocouple/heat-conduction lags span seconds to a minute
-        return [SensorLag(tau=a(dt * 2.0**k)) for k in range(0, 8)]
-    if name == "ambient_drift":
-        return [AmbientDrift(drift=a(d)) for d in (-0.05, -0.01, 0.01, 0.05)]
-    if name == "resistance_tc":
-        return [ResistanceTC(beta=a(b)) for b in (0.1, 0.4, 1.2)]
-    if name == "asymmetric_cooling":
-        return [AsymmetricCooling(log_ratio=a(r)) for r in (-0.7, -0.25, 0.25, 0.7)]
-    if name == "nonlinear_cooling":
-        return [NonlinearCooling(gamma=a(g)) for g in (0.1, 0.4, 1.2)]
-    if name == "input_warp":
-        return [InputWarp(c=a(c), b=a(b)) for c in (0.3, 0.5, 0.7) for b in (0.05, 0.15, 0.5)]
-    if name == "rate_dependence":
-        return [RateDependence(c=a(c)) for c in (0.1, 0.5, 2.0)]
-    if name == "creep":
-        return [Creep(g=a(g), tau=a(t)) for g in (-0.1, 0.1, 0.3) for t in _creep_taus(ctx)]
-    if name == "output_saturation":
-        return [OutputSaturation(m=a(ym + dm * yr), w=a(f * yr / 2)) for dm in (-0.1, 0.0, 0.1) for f in (1.02, 1.2, 2.0)]
-    if name == "load_dependence":
-        return [
-            LoadDependence(a=a(x), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"]))
-            for x in (-0.2, 0.0, 0.2)
-        ]
-    if name == "strain_accumulation":
-        return [StrainAccumulation(c=a(0.0))]  # a single start: c is profiled with the gains
-    raise UserInputError(f"unknown effect {name!r}; catalogue: {list(EFFECTS)}")
+    return _effect_class(name).grid(ctx)
 
 
 def _probe(name, ctx):
     """Weak versions of an effect whose output change is its residual signature."""
-    a = jnp.asarray
-    yr, lo = ctx["y_range"], ctx["y_lo"]
-    if name == "delay":
-        return [Delay(tau=a(ctx["dt"]))]
-    if name == "sensor_lag":
-        # a weak lag equals a weak delay to first order (x - tau dx/dt); longer lags carry the smoothing signature
-        return [SensorLag(tau=a(ctx["dt"] * f)) for f in (1.0, 8.0, 32.0)]
-    if name == "ambient_drift":
-        # both signs: the thermal state is rectified at zero (u_eff = sqrt(max(q, 0))), so a falling ambient does
-        # nothing while the actuator rests and a rising one acts mostly then: the signatures are not mirror images
-        return [AmbientDrift(drift=a(d)) for d in (0.01, -0.01)]
-    if name == "resistance_tc":
-        return [ResistanceTC(beta=a(0.05))]
-    if name == "asymmetric_cooling":
-        return [AsymmetricCooling(log_ratio=a(0.05))]
-    if name == "nonlinear_cooling":
-        return [NonlinearCooling(gamma=a(0.05))]
-    if name == "input_warp":
-        return [InputWarp(c=a(c), b=a(3.0)) for c in (0.25, 0.5, 0.75)]
-    if name == "rate_dependence":
-        return [RateDependence(c=a(0.05))]
-    if name == "creep":
-        return [Creep(g=a(0.05), tau=a(t)) for t in _creep_taus(ctx)]
-    if name == "output_saturation":
-        return [OutputSaturation(m=a(lo + f * yr), w=a(3.0 * yr)) for f in (0.25, 0.5, 0.75)]
-    if name == "load_dependence":
-        return [
-            LoadDependence(a=a(0.05), b=a(0.0), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])),
-            LoadDependence(a=a(0.0), b=a(0.05 * yr), load_ref=a(ctx["load_ref"]), load_scale=a(ctx["load_scale"])),
-        ]
-    if name == "strain_accumulation":
-        return [StrainAccumulation(c=a(0.01 * yr))]
-    raise UserInputError(f"unknown effect {name!r}")
+    return _effect_class(name).probes(ctx)
 
 
 def applicable_effects(base, split, rate_free):
@@ -603,10 +503,9 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     start = base if isinstance(base, ExtendedModel) else ExtendedModel(base, ())
     have = set(start.effect_names)
     new = [n for n in effects if n not in have]
-    order = list(EFFECTS)
     starts = []
     for combo in _product([_effect_grid(n, ctx) for n in new]):
-        m = ExtendedModel(start.base, tuple(sorted(tuple(start.effects) + tuple(combo), key=lambda e: order.index(e.name))))
+        m = ExtendedModel(start.base, tuple(sorted(tuple(start.effects) + tuple(combo), key=lambda e: effect_rank(e.name))))
         starts.append(m)
     if k1_grid is not None and isinstance(start.base, Cascade):
         starts = [eqx.tree_at(lambda m: m.base.thermal.k1, c, jnp.asarray(k)) for c in starts for k in k1_grid]
@@ -872,7 +771,7 @@ def _fit_on(name, start, split, record, *, new):
         return start
     if new:
         have = list(start.effect_names) if isinstance(start, ExtendedModel) else []
-        n_par = len(_NONLINEAR[name]) + len(have) + (1 if isinstance(start.base, Cascade) else 0)
+        n_par = len(EFFECTS[name].nonlinear(_context(split))) + len(have) + (1 if isinstance(start.base, Cascade) else 0)
         return fit_extended(start, have + [name], split, max_iter=NULL_MAX_ITER_PER_PARAMETER * max(n_par, 1))[0]
     return profile_gains(start, split.train)[0]
 
@@ -1564,21 +1463,10 @@ def _effect_params(e):
 
 # -- synthetic records with an undeclared effect (tests, experiments) ------------------
 
-#: Random strength ranges of the synthetic effects (chosen to be clearly above 3 um noise).
-SYNTHETIC_STRENGTH = {
-    "delay": "tau ~ U(2, 8) s",
-    "sensor_lag": "tau ~ U(5, 20) s",
-    "ambient_drift": "drift ~ +-U(0.005, 0.02) q_ref per 1000 s",
-    "resistance_tc": "beta ~ U(0.2, 0.6)",
-    "asymmetric_cooling": "log_ratio ~ +-U(0.3, 0.7)",
-    "nonlinear_cooling": "gamma ~ U(0.2, 0.6)",
-    "input_warp": "c ~ U(0.4, 0.6), b ~ U(0.1, 0.2) (normalised effective voltage)",
-    "rate_dependence": "c ~ U(0.5, 1.5)",
-    "creep": "g ~ +-U(0.08, 0.2) (creep or recovery from an overshoot), tau ~ U(100, 400) s",
-    "output_saturation": "m = output mid-level, w = half output range x U(0.9, 1.3)",
-    "load_dependence": "load: piecewise-constant steps in [1, 3] every 150-400 s; a ~ +-U(0.05, 0.15), b ~ +-U(0.05, 0.15) mm",
-    "strain_accumulation": "c ~ +-U(0.08, 0.25) mm per 1000 s at full drive (0.1-0.33 mm over the record)",
-}
+
+def synthetic_strength():
+    """Random strength ranges of the synthetic effects (chosen to be clearly above 3 um noise), by catalogue name."""
+    return {name: cls.synthetic for name, cls in EFFECTS.items()}
 
 
 def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.003, order=("steps", "main_loop", "minor_loop")):
@@ -1594,49 +1482,15 @@ def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.0
     t = np.arange(u.size) * dt
     y_base = np.asarray(_sim(ExtendedModel(truth, ()), jnp.asarray(u), jnp.asarray(dt), None))
     lo, hi = float(y_base.min()), float(y_base.max())
-    a = jnp.asarray
     sign = 1.0 if rng.random() < 0.5 else -1.0
     extra, load = {}, None
     if effect is None:
         eff = None
-    elif effect == "delay":
-        eff = Delay(tau=a(rng.uniform(2, 8)))
-    elif effect == "sensor_lag":
-        eff = SensorLag(tau=a(rng.uniform(5, 20)))
-    elif effect == "ambient_drift":
-        eff = AmbientDrift(drift=a(sign * rng.uniform(0.005, 0.02)))
-    elif effect == "resistance_tc":
-        eff = ResistanceTC(beta=a(rng.uniform(0.2, 0.6)))
-    elif effect == "asymmetric_cooling":
-        eff = AsymmetricCooling(log_ratio=a(sign * rng.uniform(0.3, 0.7)))
-    elif effect == "nonlinear_cooling":
-        eff = NonlinearCooling(gamma=a(rng.uniform(0.2, 0.6)))
-    elif effect == "input_warp":
-        eff = InputWarp(c=a(rng.uniform(0.4, 0.6)), b=a(rng.uniform(0.1, 0.2)))
-    elif effect == "rate_dependence":
-        eff = RateDependence(c=a(rng.uniform(0.5, 1.5)))
-    elif effect == "creep":
-        eff = Creep(g=a(sign * rng.uniform(0.08, 0.2)), tau=a(rng.uniform(100, 400)))
-    elif effect == "output_saturation":
-        eff = OutputSaturation(m=a(0.5 * (lo + hi)), w=a(0.5 * (hi - lo) * rng.uniform(0.9, 1.3)))
-    elif effect == "load_dependence":
-        load = np.empty(u.size)
-        i = 0
-        while i < u.size:
-            n = int(rng.uniform(150, 400) / dt)
-            load[i : i + n] = rng.uniform(1.0, 3.0)
-            i += n
-        extra["load_N"] = load
-        eff = LoadDependence(
-            a=a(sign * rng.uniform(0.05, 0.15)),
-            b=a((1 if rng.random() < 0.5 else -1) * rng.uniform(0.05, 0.15)),
-            load_ref=a(float(load.mean())),
-            load_scale=a(float(load.std())),
-        )
-    elif effect == "strain_accumulation":
-        eff = StrainAccumulation(c=a(sign * rng.uniform(0.08, 0.25)))
     else:
-        raise UserInputError(f"unknown effect {effect!r}")
+        ctx = {"dt": dt, "n": u.size, "y_lo": lo, "y_hi": hi, "sign": sign}
+        eff, extra = _effect_class(effect).synthesise(rng, ctx)
+        lc = next((k for k in extra if any(n in k.lower() for n in LOAD_NAMES)), None)
+        load = None if lc is None else extra[lc]
     true = ExtendedModel(truth, () if eff is None else (eff,))
     y = np.asarray(_sim(true, jnp.asarray(u), jnp.asarray(dt), None if load is None else jnp.asarray(load)))
     y = y + noise_sd * rng.standard_normal(y.shape)
