@@ -17,6 +17,7 @@ import numpy as np
 
 from ._cascade import Cascade
 from ._choose import auto_structure, fitted_memory_start, screen_start
+from ._decimate import fit_view
 from ._errors import UserInputError
 from ._eupi import EUPI
 from ._fit import SOLVERS, default_trainable, fit
@@ -121,6 +122,13 @@ def fit_record(
     tilts = (model == "auto") if tilts is None else bool(tilts)
     start = build_model(structure, record, **(grid or {}))
     train, val, split_info = split_masks(record, split, val_fraction=val_fraction)
+    # long Joule-driven records are fitted on a block-RMS view (see _decimate); metrics stay at the full rate
+    rec, (tr, va), view_info = fit_view(record, start, [train, val])
+    if view_info:
+        notes.append(
+            f"fitted on a view decimated by {view_info['stride']} ({view_info['n_samples']} samples at "
+            f"{view_info['sample_time_s']:.4g} s: block-RMS drive, block-end output); metrics at the record's own rate"
+        )
     t0 = time.perf_counter()
     screening, init, screen_info = None, "auto", {}
     memory_used = "fitted" if memory == "fitted" else "rule"
@@ -129,13 +137,13 @@ def fit_record(
             print("screening start candidates (output orientation, thermal start) on the training samples", file=sys.stderr)
         start, screening, screen_info = screen_start(
             start,
-            record,
-            [train.astype(float)],
+            rec,
+            [tr.astype(float)],
             orientation=orientation,
             thermal_start=thermal_start,
             sees=sees,
             memory="rule" if memory == "auto" else memory,
-            val_weights=[val.astype(float)] if val.any() else None,
+            val_weights=[va.astype(float)] if va.any() else None,
             progress=progress,
         )
         init = None  # the screened start is already profiled
@@ -143,17 +151,17 @@ def fit_record(
     def refine(start):
         spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
         res = fit(
-            start, record, solver=solver, trainable=spec, init=init, weights=[train.astype(float)], max_steps=max_steps,
+            start, rec, solver=solver, trainable=spec, init=init, weights=[tr.astype(float)], max_steps=max_steps,
             progress=progress,
         )  # fmt: skip
-        yhat = np.asarray(simulate(res.model, record.u, record.dt))
-        if init is None and val.any() and res.n_steps > 0:
+        yhat = np.asarray(simulate(res.model, rec.u, rec.dt))
+        if init is None and va.any() and res.n_steps > 0:
             # The joint refinement can buy training error with shapes that do not carry to new data
             # (measured on independent records: train 1.3x -> 1.0x noise, held-out 4x -> 15x). Keep it
             # only if it does not worsen the held-out error of the screened start.
-            y0 = np.asarray(simulate(start, record.u, record.dt))
-            e_ref = float(np.mean((yhat[val] - record.y[val]) ** 2))
-            e_start = float(np.mean((y0[val] - record.y[val]) ** 2))
+            y0 = np.asarray(simulate(start, rec.u, rec.dt))
+            e_ref = float(np.mean((yhat[va] - rec.y[va]) ** 2))
+            e_start = float(np.mean((y0[va] - rec.y[va]) ** 2))
             if np.isfinite(e_start) and not e_ref <= e_start:
                 note = (
                     f"the joint refinement lowered the training error but raised the validation RMSE "
@@ -164,12 +172,12 @@ def fit_record(
         return res, yhat, "kept", None
 
     def val_mse(yh):
-        e = float(np.mean((yh[val] - record.y[val]) ** 2))
+        e = float(np.mean((yh[va] - rec.y[va]) ** 2))
         return e if np.isfinite(e) else np.inf
 
     candidates = [(memory_used, start)]
-    if memory == "auto" and val.any() and init is None:
-        alt = fitted_memory_start(start, record, [train.astype(float)])
+    if memory == "auto" and va.any() and init is None:
+        alt = fitted_memory_start(start, rec, [tr.astype(float)])
         if alt is not None:
             candidates.append(("fitted", alt[0]))
     runs = [(label, *refine(m)) for label, m in candidates]
@@ -185,6 +193,7 @@ def fit_record(
         )
     if note:
         notes.append(note)
+    yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
     seconds = time.perf_counter() - t0
     if not np.all(np.isfinite(yhat)):
         raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
@@ -198,7 +207,7 @@ def fit_record(
         # the held-out error; the model a user deploys is then fitted on every sample with those choices.
         # On independent cold-start records a fit starved of the last 30 % extrapolated 10-50x worse.
         final = _refit_whole(
-            record,
+            rec,
             structure,
             split_model,
             grid,
@@ -261,6 +270,7 @@ def fit_record(
             "train_tilts": tilts,
             "grid": grid or {},
             "init": (res.info or {}).get("init"),
+            "fit_view": view_info,
         },
         "solver": {
             "name": res.solver,
