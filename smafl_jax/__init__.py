@@ -110,6 +110,8 @@ _LAZY = {
     "initialize_from_env": "_distributed",
     "choose_model_method": "_operators",
     "model_with_method": "_operators",
+    "Recalibrated": "_recalibrate",
+    "recalibrate": "_recalibrate",
 }
 
 
@@ -197,6 +199,8 @@ __all__ = [
     "Preisach",
     "prepare_out_dir",
     "Prior",
+    "Recalibrated",
+    "recalibrate",
     "Record",
     "register_model",
     "rmse",
