@@ -7,8 +7,8 @@ Procedure (`diagnose`):
    column, or a sample time >= 5 s: quasi-static data) or a non-voltage input
    (temperature, pressure) gets the `EUPI` on the input itself (``u_ref`` = input
    minimum for non-voltage inputs).
-2. **Split** (`make_split`): with a ``branch`` column, branches whose label is
-   ``2 mod 3`` are held out (interleaved, so every held-out reversal lies between
+2. **Split** (`make_split`, rules in `smafl_jax.data.split`): with a ``branch`` column, the branches at
+   positions ``2 mod 3`` of the sorted labels are held out (interleaved, so every held-out reversal lies between
    trained ones; branch 0, the major loop, is always trained on); otherwise the
    last 30 % of the record is held out (time block; the model is run over the
    whole record from the start and scored on the block).
@@ -94,6 +94,38 @@ def is_rate_free(record):
 def is_voltage(name):
     n = (name or "").lower()
     return any(k in n for k in VOLTAGE_NAMES) or n in ("u", "input")
+
+
+def screened_base(base0, split, verbose=False):
+    """``(base, table)``: ``base0`` with the orientation, hysteresis input and thermal start that `screen_start` picks.
+
+    The residual -> effect loop is only as good as its base: a length sensor fitted with rising gains, or a
+    cold-start record fitted from equilibrium, leaves structured residuals that some effect will "explain"
+    (issues 13 and 18).  The training segments are screened; the held-out samples choose the hysteresis input
+    when they lie on the training segments' own time axis (a time-block split).  ``table`` is None when the
+    base has no hysteresis part to screen.
+    """
+    from ._choose import screen_start
+    from ._hysteresis import hysteresis_of
+
+    if hysteresis_of(base0) is None:
+        return base0, None
+    data = [(s.u, s.y, s.dt) for s in split.train]
+    weights = [s.mask.astype(float) for s in split.train]
+    same_axis = len(split.train) == len(split.test) == 1 and len(split.train[0].u) == len(split.test[0].u)
+    val = [split.test[0].mask.astype(float)] if same_axis else None
+    model, table, _ = screen_start(base0, data, weights, val_weights=val, memory="rule")
+    th = getattr(model, "thermal", None)
+    _log(
+        f"base start screened: orientation {hysteresis_of(model).orientation:+d}"
+        + (
+            f", sees {model.sees}, thermal start {th.init}" + (f" u0 {float(th.u0):.4g}" if th.u0 is not None else "")
+            if th
+            else ""
+        ),
+        verbose,
+    )
+    return model, table
 
 
 def choose_base(record):
@@ -197,47 +229,30 @@ def _segment(rec, idx, mask=None, load_col=None):
 
 
 def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
-    """Documented split: interleaved branches (label % 3 == ``holdout_residue``, default 2) or the last 30 % as a time block.
+    """Documented split (rules in `smafl_jax.data.split`): interleaved branches or the last 30 % as a time block.
 
-    Other residues (0, 1) give the cross-validation folds of a branch record;
-    branch 0 (the major loop) is always trained on.
+    With a ``branch`` column: of the sorted branch labels, positions ``i % 3 == holdout_residue`` (default
+    2) are held out, position 0 (the major loop) always trains (`data.split.branches`); other residues
+    (0, 1) give the cross-validation folds of a branch record.  Otherwise the time block
+    (`data.split.time_block`; the model is run from t = 0).  Segments carry the record's load column.
     """
-    lc = load_column(record)
-    if "branch" in record.extra:
+    from .data import split as _split
+
+    branch = "branch" in record.extra
+    if branch:
         if holdout_residue not in (0, 1, 2):
             raise UserInputError(f"holdout_residue must be 0, 1 or 2, got {holdout_residue!r}")
-        b = np.asarray(record.extra["branch"]).astype(int)
-        labels = list(dict.fromkeys(b.tolist()))
-        held = [k for k in labels if k != 0 and k % 3 == holdout_residue]
-        if not held or len(held) == len(labels):
-            raise UserInputError(
-                f"branch split needs at least one branch labelled {holdout_residue} mod 3 (not 0) and one other branch"
-            )
-        train = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k not in held]
-        test = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels if k in held]
-        return Split(
-            "branch",
-            f"branches with label % 3 == {holdout_residue} held out (interleaved); branch 0 (major loop) trained",
-            train,
-            test,
-            [k for k in labels if k not in held],
-            held,
-        )
-    n = len(record)
-    cut = int(round(n * (1.0 - holdout_fraction)))
-    if cut < 20 or n - cut < 10:
-        raise UserInputError(f"record too short to hold out the last {holdout_fraction:.0%} ({n} samples)")
-    full = np.arange(n)
-    train = [_segment(record, full[:cut], load_col=lc)]
-    test = [_segment(record, full, mask=full >= cut, load_col=lc)]
-    return Split(
-        "time",
-        f"time block: first {1 - holdout_fraction:.0%} trained, last {holdout_fraction:.0%} held out (model run from t = 0)",
-        train,
-        test,
-        [f"0..{cut - 1}"],
-        [f"{cut}..{n - 1}"],
-    )
+        sp = _split.branches(record, holdout_residue)
+    else:
+        sp = _split.time_block(record, holdout_fraction)
+
+    def labels(ls):  # numeric branch labels in diagnosis.json, as before (`data.split` labels are strings)
+        return [int(float(k)) if float(k).is_integer() else float(k) for k in ls] if branch else list(ls)
+
+    lc = load_column(record)
+    train = [_segment(record, s.index, mask=s.mask, load_col=lc) for s in sp.train]
+    test = [_segment(record, s.index, mask=s.mask, load_col=lc) for s in sp.test]
+    return Split(sp.kind, sp.rule, train, test, labels(sp.train_labels), labels(sp.test_labels))
 
 
 # -- simulation and metrics -------------------------------------------------------
@@ -292,19 +307,13 @@ def n_parameters(model):
 
 
 def _bvls(A, b, nonneg):
-    """Bounded least squares via the Cholesky factor of the (column-scaled) normal equations (fast for long records)."""
-    from scipy.linalg import cho_factor, solve_triangular
-    from scipy.optimize import lsq_linear
+    """Bounded least squares (`smafl_jax.identify.linear.solve`: column-scaled, Cholesky-reduced BVLS).
 
-    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-12)
-    As = A / scale
-    G = As.T @ As
-    G[np.diag_indices_from(G)] += 1e-12 * np.trace(G) / G.shape[0]
-    R = np.triu(cho_factor(G, lower=False)[0])
-    rhs = solve_triangular(R.T, As.T @ b, lower=True)
-    lb = np.where(nonneg, 0.0, -np.inf)
-    sol = lsq_linear(R, rhs, bounds=(lb, np.full_like(lb, np.inf)), method="bvls")
-    return sol.x / scale
+    No ``drop_constant`` and no ``clip`` here, unlike `smafl_jax._fit`: the diagnosis keeps its earlier numbers.
+    """
+    from .identify.linear import solve
+
+    return solve(A, b, nonneg, clip=False).x
 
 
 def _design(model, segs):
@@ -1073,8 +1082,12 @@ def diagnose(
     n_folds=CALIBRATED_DEFAULTS["n_folds"],
     seed=0,
     compare_legacy=False,
+    screen=False,
 ):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
+
+    ``screen``: the base model's output orientation, hysteresis input and thermal start are first screened
+    on the training samples as `smafl fit` does (`screened_base`); False keeps the fixed start of earlier versions.
 
     The returned models are fitted on the training part of the split (the
     held-out figures are theirs).  With ``refit`` the selected structure is
@@ -1122,6 +1135,10 @@ def diagnose(
         verbose,
     )
     k1_grid = (0.01, 0.03, 0.1, 0.3) if isinstance(base0, Cascade) else None
+    if screen:
+        base0, screened = screened_base(base0, split, verbose)
+        if screened is not None:
+            k1_grid = None  # the screened k1 (searched jointly with the thermal start) is the simplex's start
     base, base_info = fit_extended(base0, [], split, k1_grid=k1_grid, verbose=verbose)
     base_tr, base_te = _metrics_pair(base, split)
     base_ic = information_criteria(base, split.train)

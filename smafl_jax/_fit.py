@@ -200,46 +200,15 @@ def default_trainable(model, *, thresholds=False, tilts=False):
 
 
 def _bvls(A, b, nonneg):
-    """Bounded LS ``min |A x - b|`` with ``x[nonneg] >= 0``; column-scaled for conditioning.
+    """Bounded LS ``min |A x - b|`` with ``x[nonneg] >= 0``: `smafl_jax.identify.linear.solve`; returns ``(x, loss)``.
 
-    The tall problem is first reduced to ``p x p`` (``|A x - b|^2 = |R x - c|^2
-    + const`` with ``R^T R = A^T A``, ``R^T c = A^T b``), so the active-set
-    iterations of BVLS are cheap.  R comes from a Cholesky factor of the
-    column-scaled Gram matrix, with a relative ridge of 1e-13 so collinear
-    operator columns do not break it (a LAPACK QR of the tall matrix was 20-40x
-    slower on a loaded 2-core machine with threaded OpenBLAS); the loss is
-    evaluated on the full residual.
+    Column-scaled, Cholesky-reduced BVLS; operators the training samples never moved get gain 0
+    (``drop_constant``); ``jitter_of="trace"`` and ``rhs="transpose"`` keep the fit's earlier numbers exactly.
     """
-    import scipy.linalg
-    from scipy.optimize import lsq_linear
+    from .identify.linear import solve
 
-    # Operators the training samples never moved (threshold above the trained input range) give
-    # constant columns, collinear with the offset: BVLS would hand them arbitrary gains that bite the
-    # first time a later input exceeds the trained range. They get gain 0 instead.
-    dead = np.asarray(nonneg, bool) & (np.ptp(A, axis=0) <= 1e-9 * max(float(np.max(np.abs(A))), 1e-300))
-    if np.any(dead):
-        keep = ~dead
-        x_keep, loss = _bvls(A[:, keep], b, np.asarray(nonneg, bool)[keep]) if np.any(keep) else (np.zeros(0), 0.5 * float(b @ b))
-        x = np.zeros(A.shape[1])
-        x[keep] = x_keep
-        return x, loss
-    lb = np.where(nonneg, 0.0, -np.inf)
-    # column scaling keeps BVLS well conditioned when operator columns are tiny
-    scale = np.maximum(np.sqrt(np.mean(A**2, axis=0)), 1e-12)
-    As, bs = A / scale, b
-    if As.shape[0] > As.shape[1]:
-        gram = As.T @ As
-        gram[np.diag_indices_from(gram)] += 1e-13 * np.trace(gram)
-        try:
-            r = scipy.linalg.cholesky(gram, lower=False)
-            As, bs = r, scipy.linalg.solve_triangular(r, As.T @ b, trans="T")
-        except np.linalg.LinAlgError:
-            pass  # not positive definite even with the ridge: BVLS on the full system
-    sol = lsq_linear(As, bs, bounds=(lb, np.full_like(lb, np.inf)), method="bvls")
-    # BVLS can end a bounded weight at -1e-18: saved, such a model would be refused on loading (positive fields)
-    x = np.where(nonneg, np.maximum(sol.x / scale, 0.0), sol.x / scale)
-    res = A @ x - b
-    return x, 0.5 * float(res @ res)
+    sol = solve(A, b, nonneg, jitter=1e-13, jitter_of="trace", rhs="transpose", drop_constant=True)
+    return sol.x, sol.loss
 
 
 def _stack_rows(blocks, data, weights):
@@ -591,7 +560,7 @@ def fit(
     energy = 0.5 * sum(float(np.sum(w * y * y)) for (_, y, _), w in zip(data, weights))
     if loss > init_loss * (1 + 1e-9) + 1e-13 * energy:
         message = (
-            f"joint refinement ({solver}) ended worse than its start (loss {loss:.6g} > {init_loss:.6g}); "
+            f"joint refinement ({solver}) ended worse than its start (loss {loss:.10g} > {init_loss:.10g}); "
             "kept the initialiser's model"
         )
         return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)

@@ -257,8 +257,8 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
     figures (``yhat``: joint model, ``yhat_loro``: fold model with the record held out).
     """
     from ._fit import SOLVERS
-    from ._io import model_to_dict
-    from ._report_fit import K2_NOTE, versions
+    from ._provenance import fit_header, versions
+    from ._report_fit import K2_NOTE
 
     unknown = sorted(set(fit_record_kwargs) - set(FIT_OPTIONS))
     if unknown:
@@ -388,9 +388,7 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
 
     dts = [float(r.dt) for r in records]
     doc = {
-        "format": "smafl-model",
-        "version": 1,
-        "model": model_to_dict(res.model),
+        **fit_header(res.model),
         "metrics": {"train": pooled_train, "validation": mean_model},
         "data": {
             "file": None,

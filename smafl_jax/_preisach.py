@@ -322,7 +322,7 @@ def design(model, segments):
 
 
 def solve_penalised(A, y, nonneg, P, lam, *, dof=True):
-    """``min ||A x - y||^2 + lam x' P x`` s.t. ``x[nonneg] >= 0`` (NNLS on the Cholesky-reduced normal equations).
+    """``min ||A x - y||^2 + lam x' P x`` s.t. ``x[nonneg] >= 0`` (`smafl_jax.identify.linear.solve`, method "nnls").
 
     Unbounded columns enter NNLS twice (``x = x+ - x-``).  Lawson-Hanson NNLS
     gives the same minimiser as scipy's BVLS here, about 25x faster on a
@@ -331,26 +331,11 @@ def solve_penalised(A, y, nonneg, P, lam, *, dof=True):
     the free (non-clamped) columns: the effective number of parameters
     (``dof=False``: None, skipping its solve, e.g. in the cross-validation cells).
     """
-    from scipy.linalg import cho_factor, solve_triangular
-    from scipy.optimize import nnls
+    from .identify.linear import solve
 
-    G = A.T @ A + lam * P
-    jitter = 1e-10 * max(np.trace(A.T @ A) / A.shape[1], 1e-300)
-    G[np.diag_indices_from(G)] += jitter
-    R = np.triu(cho_factor(G, lower=False)[0])
-    rhs = solve_triangular(R.T, A.T @ y, lower=True)
-    unbounded = ~np.asarray(nonneg, bool)
-    Rs = np.column_stack([R, -R[:, unbounded]])
-    z, _ = nnls(Rs, rhs, maxiter=50 * Rs.shape[1])
-    x = z[: R.shape[1]].copy()
-    x[unbounded] -= z[R.shape[1] :]
-    if not dof:
-        return x, None
-    free = ~nonneg | (x > 1e-10 * max(np.max(np.abs(x)), 1e-300))
-    Af = A[:, free]
-    Gf = Af.T @ Af + lam * P[np.ix_(free, free)]
-    Gf[np.diag_indices_from(Gf)] += jitter
-    return x, float(np.trace(np.linalg.solve(Gf, Af.T @ Af)))
+    # unscaled columns (the smoothness penalty couples neighbouring weights in their own units), jitter 1e-10
+    sol = solve(A, y, nonneg, penalty=lam * P, scale=False, jitter=1e-10, method="nnls", clip=False, dof=dof)
+    return sol.x, sol.dof
 
 
 def penalty_matrix(model, smooth, ridge=0.0):

@@ -5,25 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model, to_jsonable
+from ._provenance import record_data, versions
 from ._reportdoc import axis_label, unit_of
 
 __all__ = ["write_diagnosis", "versions"]
-
-
-def versions():
-    import equinox
-    import jax
-    import scipy
-
-    from . import __version__
-
-    return {
-        "smafl_jax": __version__,
-        "jax": jax.__version__,
-        "equinox": equinox.__version__,
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-    }
 
 
 def _fit_doc(rec, res, which, deployed=False):
@@ -42,15 +27,8 @@ def _fit_doc(rec, res, which, deployed=False):
     return {
         "metrics": {"train": part["train"], "validation": part["heldout"]},
         **extra,
-        "data": {
-            "file": rec.name + ".csv" if rec.path else rec.name,
-            "path": rec.path,
-            "sha256": rec.sha256,
-            "input_column": rec.input_name,
-            "output_column": rec.output_name,
-            "sample_time_s": rec.dt,
-            "n_samples": len(rec),
-        },
+        # the record's provenance as in fit.json; an in-memory record keeps its name as "file"
+        "data": {**record_data(rec), **({} if rec.path else {"file": rec.name})},
         "settings": {
             "command": "diagnose",
             "split": res["split"],

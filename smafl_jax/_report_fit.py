@@ -8,7 +8,6 @@ the measured output range *of that subset*.
 
 from __future__ import annotations
 
-import platform
 import sys
 import time
 from pathlib import Path
@@ -25,6 +24,7 @@ from ._hysteresis import hysteresis_class, hysteresis_of
 from ._io import atomic_savefig, atomic_write_json, atomic_write_text, model_to_dict
 from ._joule_lag import JouleLag
 from ._metrics import metrics
+from ._provenance import fit_header, record_data, versions
 from ._range import EFFECTIVE_RULE, effective_values, value_range
 from ._simulate import simulate
 from ._split import split_masks
@@ -39,18 +39,6 @@ K2_NOTE = (
     "proportional to k2, so the displacement does not depend on k2; it is held at its start value. "
     "Fit --model joule (the paper's eq. 7 lag) for a K2, which is a different quantity."
 )
-
-
-def versions():
-    from importlib.metadata import PackageNotFoundError, version
-
-    out = {"python": platform.python_version()}
-    for pkg in ("smafl-jax", "jax", "jaxlib", "equinox", "optimistix", "jaxopt", "numpy", "scipy"):
-        try:
-            out[pkg.replace("-", "_")] = version(pkg)
-        except PackageNotFoundError:
-            out[pkg.replace("-", "_")] = None
-    return out
 
 
 def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_ref="auto"):
@@ -237,21 +225,10 @@ def fit_record(
     if not res.converged:
         notes.append(f"solver: {res.message}")
     doc = {
-        "format": "smafl-model",
-        "version": 1,
-        "model": model_to_dict(final),
+        **fit_header(final),
         "split_model": model_to_dict(split_model) if final is not split_model else None,
         "metrics": mets,
-        "data": {
-            "file": Path(record.path).name if record.path else None,
-            "path": str(record.path) if record.path else None,
-            "sha256": record.sha256,
-            "input_column": record.input_name,
-            "output_column": record.output_name,
-            "sample_time_s": float(record.dt),
-            "n_samples": len(record),
-            "units": dict(record.units),
-        },
+        "data": record_data(record),
         "split": split_info,
         "settings": {
             "model": model,

@@ -15,6 +15,10 @@ Rules (fixed, documented, never tuned to a result):
 - ``"time"``: the last ``val_fraction`` (default 30 %) of the samples.
 - ``"none"``: everything trains; there are no validation metrics.
 - ``"auto"``: ``"branch"`` when the record has a ``branch`` column, else ``"time"``.
+
+The rules themselves (where the time block starts, which branches are held out) live in
+`smafl_jax.data.split` (`time_cut`, `branch_partition`), shared with diagnose and cross-validation;
+this module turns them into masks over one whole-record simulation.
 """
 
 from __future__ import annotations
@@ -22,13 +26,13 @@ from __future__ import annotations
 import numpy as np
 
 from ._errors import UserInputError
+from .data.split import BRANCH_EVERY, branch_partition, time_cut
 
 __all__ = ["split_masks", "SPLITS"]
 
 from ._choices import SPLITS
 
-BRANCH_EVERY = 3
-BRANCH_POSITION = 2
+BRANCH_POSITION = 2  # the residue of `branch_partition` used by fit: the 3rd, 6th, ... sorted labels
 
 
 def split_masks(record, split="auto", *, val_fraction=0.3, branch_column="branch"):
@@ -43,7 +47,7 @@ def split_masks(record, split="auto", *, val_fraction=0.3, branch_column="branch
     if split == "time":
         if not (isinstance(val_fraction, (int, float)) and 0.0 < val_fraction < 1.0):
             raise UserInputError(f"--val-fraction must be in (0, 1), got {val_fraction}")
-        n_val = int(round(val_fraction * n))
+        n_val = n - time_cut(n, val_fraction)
         if n_val < 3 or n - n_val < 3:
             raise UserInputError(f"time split leaves {n - n_val} train and {n_val} validation samples; need >= 3 each")
         val = np.zeros(n, bool)
@@ -61,7 +65,7 @@ def split_masks(record, split="auto", *, val_fraction=0.3, branch_column="branch
         )
     labels = np.asarray(record.extra[branch_column])
     branches = np.unique(labels)
-    held = branches[BRANCH_POSITION::BRANCH_EVERY]
+    held = np.asarray(branch_partition(branches, BRANCH_POSITION)[1], dtype=branches.dtype)
     if held.size == 0:
         raise UserInputError(f"branch split needs at least {BRANCH_POSITION + 1} branches, the record has {branches.size}")
     val = np.isin(labels, held)

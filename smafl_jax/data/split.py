@@ -65,6 +65,8 @@ __all__ = [
     "load_column",
     "SPLIT_KINDS",
     "HOLDOUT_FRACTION",
+    "time_cut",
+    "branch_partition",
 ]
 
 HOLDOUT_FRACTION = 0.3
@@ -154,11 +156,16 @@ def _check_fraction(holdout_fraction) -> float:
     return float(holdout_fraction)
 
 
+def time_cut(n: int, holdout_fraction: float = HOLDOUT_FRACTION) -> int:
+    """First held-out sample of the time block: ``round(n (1 - holdout_fraction))`` (fit, diagnose and CV alike)."""
+    return round(n * (1.0 - _check_fraction(holdout_fraction)))
+
+
 def time_block(record: Record, holdout_fraction: float = HOLDOUT_FRACTION) -> Split:
     """First part trains, last ``holdout_fraction`` held out; the held-out segment is the whole record, masked."""
     f = _check_fraction(holdout_fraction)
     n = len(record)
-    cut = round(n * (1.0 - f))
+    cut = time_cut(n, f)
     if cut < MIN_TRAIN or n - cut < MIN_TEST:
         raise UserInputError(
             f"{record.name}: record too short to hold out the last {f:.0%} ({n} samples; need {MIN_TRAIN} training and "
@@ -200,13 +207,25 @@ def _fmt(k) -> str:
     return str(int(k)) if float(k).is_integer() else f"{k:g}"
 
 
+def branch_partition(labels, residue: int = 2) -> tuple[list, list]:
+    """``(kept, held)`` branch labels: of the sorted distinct labels, positions ``i % 3 == residue`` (i != 0) are held.
+
+    The one branch rule of fit (`smafl_jax._split.split_masks`), diagnose and CV: positions, not label
+    values, so non-contiguous labels split like contiguous ones.
+    """
+    if residue not in range(BRANCH_EVERY):
+        raise UserInputError(f"residue must be 0, 1 or 2, got {residue!r}")
+    labels = sorted(np.unique(np.asarray(labels, float)).tolist())
+    held = [k for i, k in enumerate(labels) if i != 0 and i % BRANCH_EVERY == residue]
+    return [k for k in labels if k not in held], held
+
+
 def branches(record: Record, residue: int = 2, *, column: str = BRANCH_COLUMN) -> Split:
     """Interleaved branch split: sorted-label positions ``i % 3 == residue`` held out, position 0 always trained."""
     if residue not in range(BRANCH_EVERY):
         raise UserInputError(f"residue must be 0, 1 or 2, got {residue!r}")
     labels, groups = _branch_groups(record, column)
-    held = [k for i, k in enumerate(labels) if i != 0 and i % BRANCH_EVERY == residue]
-    kept = [k for k in labels if k not in held]
+    kept, held = branch_partition(labels, residue)
     if not held:
         raise UserInputError(
             f"{record.name}: the branch split with residue {residue} holds out nothing: {len(labels)} branches "
