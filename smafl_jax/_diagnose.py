@@ -421,10 +421,17 @@ _K1_STEP = 0.5
 
 
 def _phi_layout(model, ctx):
-    """Nonlinear (profiled-over) parameters: ``(effect name or None for k1, field, Transform, step)``, in order."""
+    """Nonlinear (profiled-over) parameters: ``(effect name or None for the thermal part, field, Transform, step)``.
+
+    A thermal start given as an initial effective voltage ``u0`` (a screened base) is searched with k1: the two
+    trade off (a cold start looks like a slow lag), so holding one while moving the other biases both.
+    """
     lay = []
     if isinstance(model.base, Cascade):
         lay.append((None, "k1", _K1, _K1_STEP))
+        th = model.base.thermal
+        if th.init == "given" and th.u0 is not None:
+            lay.append((None, "u0", _K1, _K1_STEP))
     for e in model.effects:
         lay += [(e.name, p.field, p.transform, p.step) for p in e.nonlinear(ctx)]
     return lay
@@ -433,7 +440,7 @@ def _phi_layout(model, ctx):
 def _get_phi(model, lay):
     out = []
     for name, field, tr, _ in lay:
-        v = float(model.base.thermal.k1) if name is None else float(getattr(model.get(name), field))
+        v = float(getattr(model.base.thermal, field)) if name is None else float(getattr(model.get(name), field))
         out.append(tr.to_phi(v))
     return np.array(out)
 
@@ -442,7 +449,7 @@ def _set_phi(model, lay, phi):
     for (name, field, tr, _), p in zip(lay, phi):
         v = jnp.asarray(tr.from_phi(p))
         if name is None:
-            model = eqx.tree_at(lambda m: m.base.thermal.k1, model, v)
+            model = eqx.tree_at(lambda m: getattr(m.base.thermal, field), model, v)
         else:
             idx = [e.name for e in model.effects].index(name)
             model = eqx.tree_at(lambda m: getattr(m.effects[idx], field), model, v)
@@ -1082,7 +1089,7 @@ def diagnose(
     n_folds=CALIBRATED_DEFAULTS["n_folds"],
     seed=0,
     compare_legacy=False,
-    screen=False,
+    screen=True,
 ):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
 

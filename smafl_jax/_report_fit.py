@@ -181,6 +181,8 @@ def fit_record(
         )
     if note:
         notes.append(note)
+    if view_info and max_steps > 0:
+        res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress))
     yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
     seconds = time.perf_counter() - t0
     if not np.all(np.isfinite(yhat)):
@@ -208,6 +210,8 @@ def fit_record(
             progress,
             memory_used,
         )
+        if view_info and max_steps > 0:
+            final = _polish(final, record, np.ones(len(record), bool), solver, thresholds, tilts, progress)
         y_all = np.asarray(simulate(final, record.u, record.dt))
         mets["whole_record"] = metrics(record.y, y_all) if np.all(np.isfinite(y_all)) else None
         notes.append(
@@ -272,6 +276,27 @@ def fit_record(
         doc["data"]["effective_input_range"] = value_range(x_eff, train)
         doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
     return final, doc, (train, val, yhat)
+
+
+#: Full-rate LM steps after a fit on the decimated view (`_decimate`).
+POLISH_STEPS = 10
+
+
+def _polish(model, record, mask, solver, thresholds, tilts, progress):
+    """A few joint LM steps at the record's own rate from a model fitted on the decimated view.
+
+    The view is exact for the heat per block, but a plant integrates its drive in its own way inside a
+    sample; measured on an independent PWM record (25 Hz, stride 2): the view's model was at 1.09x noise
+    on the view and 19x at the full rate, and 10 full-rate steps (5 s) brought it to 1.09x.
+    """
+    spec = default_trainable(model, thresholds=thresholds, tilts=tilts)
+    res = fit(model, record, solver=solver, trainable=spec, init=None, weights=[mask.astype(float)], max_steps=POLISH_STEPS)
+    if progress:
+        print(
+            f"full-rate polish of the view's fit: loss {res.init_loss:.6g} -> {res.loss:.6g} ({res.n_steps} steps)",
+            file=sys.stderr,
+        )
+    return res.model
 
 
 def _refit_whole(

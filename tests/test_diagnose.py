@@ -3,6 +3,7 @@
 import importlib.util
 import json
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -614,3 +615,24 @@ def test_cli_refuses_degenerate_records(tmp_path, capsys):
         assert main(["diagnose", str(csv), "--out", str(tmp_path / f"o_{name}"), "--quiet", *extra]) == 2
         err = capsys.readouterr().err.strip()
         assert msg in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_screened_base_fits_a_length_sensor_and_a_cold_start(truth, drives):
+    """The diagnosis base is screened like `smafl fit` (orientation, thermal start): a record whose output falls
+    on contraction and that starts cold gets a base at the noise level, which the fixed start cannot reach."""
+    from smafl_jax._diagnose import choose_base, fit_extended, make_split, score, screened_base
+
+    rec, _ = synthetic_effect_record(truth, drives, None, seed=5)
+    cold = eqx.tree_at(lambda m: m.thermal, truth, sj.JouleThermal(k1=truth.thermal.k1, k2=truth.thermal.k2, init="ambient"))
+    u = np.concatenate([np.full(40, float(np.max(rec.u)) * 0.8), rec.u])  # starts cold with the power on
+    y = 25.0 - np.asarray(sj.simulate(cold, u, rec.dt))  # a length sensor: falls as the actuator contracts
+    y = y + 0.003 * np.random.default_rng(5).normal(size=y.size)
+    rec2 = sj.Record.from_arrays(np.arange(u.size) * rec.dt, u, y, input_name="voltage_V", output_name="length_mm")
+    split = make_split(rec2)
+    base0, _ = choose_base(rec2)
+    screened, table = screened_base(base0, split)
+    assert table and screened.hysteresis.orientation == -1 and screened.thermal.init == "given"
+    fixed, _ = fit_extended(base0, [], split, k1_grid=(0.01, 0.03, 0.1, 0.3))
+    good, _ = fit_extended(screened, [], split)
+    rmse = {k: score(m, split.test)[0]["rmse"] for k, m in (("fixed", fixed), ("screened", good))}
+    assert rmse["screened"] < 2.0 * 0.003 < 0.5 * rmse["fixed"], rmse
