@@ -128,6 +128,20 @@ def screened_base(base0, split, verbose=False):
     return model, table
 
 
+def _start_doc(model, screened):
+    """How the base started (diagnosis.json ``base.start``): screened or fixed, orientation, thermal start."""
+    from ._hysteresis import hysteresis_of
+
+    h = hysteresis_of(model)
+    th = getattr(getattr(model, "base", model), "thermal", None)
+    doc = {"rule": "screened (as smafl fit)" if screened is not None else "fixed", "candidates": screened}
+    if h is not None:
+        doc["orientation"] = int(h.orientation)
+    if th is not None:
+        doc.update(thermal_init=th.init, u0=None if th.u0 is None else float(th.u0))
+    return doc
+
+
 def choose_base(record):
     """Untrained base model and the rule that picked it (see module docstring)."""
     u = np.asarray(record.u)
@@ -1142,6 +1156,7 @@ def diagnose(
         verbose,
     )
     k1_grid = (0.01, 0.03, 0.1, 0.3) if isinstance(base0, Cascade) else None
+    screened = None
     if screen:
         base0, screened = screened_base(base0, split, verbose)
         if screened is not None:
@@ -1272,6 +1287,7 @@ def diagnose(
             "heldout_rmse": base_te["rmse"],
             "information_criteria": base_ic,
             "fit": base_info,
+            "start": _start_doc(base, screened),
         },
         "split": {
             "kind": split.kind,

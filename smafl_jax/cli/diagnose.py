@@ -43,6 +43,13 @@ def add_parser(sub):
         help="write the split fits as extended_fit.json / base_fit.json instead of refitting "
         "the selected structure on the whole record",
     )
+    p.add_argument(
+        "--base-start",
+        choices=("screened", "fixed"),
+        default="screened",
+        help="base model start: 'screened' (default: output orientation, hysteresis input and thermal start chosen on the "
+        "training samples, as smafl fit does) or 'fixed' (rising output, at rest with the first input: earlier versions)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
     return p
@@ -82,6 +89,7 @@ def run(args):
         n_null=args.n_null,
         n_folds=args.n_folds,
         seed=args.seed,
+        screen=args.base_start == "screened",
     )
     write_diagnosis(out, rec, res, base, ext, split)
     warning = res["split"].get("coverage", {}).get("warning")
