@@ -26,7 +26,7 @@ import dataclasses
 import numpy as np
 
 #: Records longer than this (samples) are fitted on a decimated view.
-DECIMATE_ABOVE = 10_000
+DECIMATE_ABOVE = 20_000
 #: Target length of the view (samples).
 TARGET_SAMPLES = 6_000
 #: Longest sample time of the view (s): keeps ``k1 * dt`` small for fast actuators (k1 up to ~1 1/s).

@@ -13,7 +13,6 @@ except the paper's own values, which are labelled as such.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -783,29 +782,13 @@ SUMMARY_ROWS.append(("diagnosis", _summary_diagnosis))
 
 def section_bayes(recs, out, quick, fit_json, seed):
     """Posterior of the cascade (emcee, gains marginalised) with the held-out minor loop on top."""
-    from .cli import main as cli_main
+    from .workflows import sample_posterior
 
     sub = out / "posterior"
     steps = 400 if quick else 3000
-    argv = [
-        "sample",
-        recs["main_loop"].path,
-        "--fit",
-        str(fit_json),
-        "--out",
-        str(sub),
-        "--heldout",
-        recs["minor_loop"].path,
-        "--steps",
-        str(steps),
-        "--seed",
-        str(seed),
-        "--restart",
-    ]
-    rc = cli_main(argv)
-    if rc != 0:
-        raise RuntimeError(f"posterior sampling failed (smafl {' '.join(argv)} returned {rc})")
-    summary = json.loads((sub / "summary.json").read_text())
+    summary = sample_posterior(
+        recs["main_loop"].path, str(fit_json), out=sub, heldout=recs["minor_loop"].path, steps=steps, seed=seed, restart=True
+    ).summary
     return {
         "summary": summary,
         "steps": steps,
