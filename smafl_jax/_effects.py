@@ -7,61 +7,6 @@ re-exports their names so that earlier imports keep working; saved models name c
 
 from __future__ import annotations
 
-from .effects import (
-    ACCUMULATION_TIME,
-    DRIFT_TIME,
-    EFFECT_NAMES,
-    EFFECTS,
-    RATE_TIME,
-    STAGES,
-    AbstractEffect,
-    AmbientDrift,
-    AsymmetricCooling,
-    Creep,
-    Delay,
-    Effect,
-    ExtendedModel,
-    InputWarp,
-    LoadBound,
-    LoadDependence,
-    NonlinearCooling,
-    OutputSaturation,
-    RateDependence,
-    ResistanceTC,
-    SensorLag,
-    StrainAccumulation,
-    effect_names,
-    fractional_delay,
-    register_effect,
-    warp_input,
-)
+from .effects import *  # noqa: F403
+from .effects import __all__  # noqa: F401
 from .effects.catalogue import _lowpass  # noqa: F401
-
-__all__ = [
-    "ACCUMULATION_TIME",
-    "DRIFT_TIME",
-    "EFFECTS",
-    "EFFECT_NAMES",
-    "RATE_TIME",
-    "STAGES",
-    "AbstractEffect",
-    "AmbientDrift",
-    "AsymmetricCooling",
-    "Creep",
-    "Delay",
-    "Effect",
-    "ExtendedModel",
-    "InputWarp",
-    "LoadBound",
-    "LoadDependence",
-    "NonlinearCooling",
-    "OutputSaturation",
-    "RateDependence",
-    "ResistanceTC",
-    "SensorLag",
-    "StrainAccumulation",
-    "effect_names",
-    "fractional_delay",
-    "register_effect",
-    "warp_input",
-]
