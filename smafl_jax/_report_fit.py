@@ -169,7 +169,8 @@ def fit_record(
         if alt is not None:
             candidates.append(("fitted", alt[0]))
     runs = [(label, *refine(m)) for label, m in candidates]
-    label, res, yhat, refinement, note = min(runs, key=lambda r: val_mse(r[2]))
+    # one candidate (no validation samples, or memory fixed): nothing to choose, and no mean over an empty set
+    label, res, yhat, refinement, note = runs[0] if len(runs) == 1 else min(runs, key=lambda r: val_mse(r[2]))
     if len(runs) > 1:
         # A fitted operator memory helps a record that starts on an unknown branch and hurts where the extra
         # freedom extrapolates (NiTi water steps: validation RMSE 6.8 -> 18.8); the validation samples decide.

@@ -210,3 +210,18 @@ def test_initial_state_rules_on_a_new_record(rng, tmp_path):
     )  # fmt: skip
     assert bad.returncode == 2 and "measured" in bad.stderr and "Traceback" not in bad.stderr
     assert not (tmp_path / "b.csv").exists()
+
+
+def test_fit_without_validation_split_warns_nothing():
+    """``split="none"``: no validation samples, so nothing is averaged over an empty set (no numpy warnings)."""
+    import warnings
+    from pathlib import Path
+
+    import smafl_jax as sj
+    from smafl_jax._report_fit import fit_record
+
+    rec = sj.load_record(Path(__file__).resolve().parents[1] / "datasets" / "steps.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        _, doc, _ = fit_record(rec, split="none", model="eupi", max_steps=0)
+    assert doc["metrics"]["validation"] is None
