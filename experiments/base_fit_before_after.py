@@ -10,7 +10,8 @@ memory, thermal scheme, sensor).  Each record is fitted on its first 70 % and sc
     python experiments/base_fit_before_after.py --table /tmp/old.json /tmp/new.json
 
 SMAFL_FIT_OPTS='{"max_steps": 40}' (JSON) passes keyword options to `fit_record`, to compare settings of one tree.
-SMAFL_CELLS='PWM' keeps only the cells whose name contains that text.
+SMAFL_CELLS='PWM' keeps only the cells whose name contains that text; SMAFL_CELLS_JSON='{"PWM 100 Hz": {"drive": "pwm",
+"rate_hz": 100, "start": "cold"}}' replaces the cells (keywords of tests/indep_plant.make_record).
 """
 
 import json
@@ -54,6 +55,7 @@ CELLS = {
     "multisine, half-warm, 10 Hz": dict(drive="multisine", rate_hz=10, start="mid"),
 }
 OPTS = json.loads(os.environ.get("SMAFL_FIT_OPTS", "{}"))
+CELLS = json.loads(os.environ["SMAFL_CELLS_JSON"]) if "SMAFL_CELLS_JSON" in os.environ else CELLS
 CELLS = {k: v for k, v in CELLS.items() if os.environ.get("SMAFL_CELLS", "") in k}
 rows = []
 for seed in seeds:
