@@ -85,6 +85,9 @@ for seed in seeds:
             k1_true=r["truth"]["thermal"]["k1"],
             k1=float(getattr(getattr(model, "thermal", None), "k1", np.nan)),
             memory=r["truth"]["hysteresis"]["memory"]["kind"],
+            sensor=r["truth"]["sensor"]["orientation"],
+            fit_orientation=getattr(getattr(model, "hysteresis", None), "orientation", None),
+            orientation_ambiguous=any(n.startswith("output orientation:") for n in doc.get("notes", [])),
             opts=OPTS,
         )
         rows.append(row)
