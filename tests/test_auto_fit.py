@@ -100,8 +100,9 @@ def test_screening_finds_the_sensor_orientation_on_independent_records(orientati
     start = sj.Cascade.from_range(float(np.max(r["u"])), n_sym=4, n_alpha=2, n_asym=2)
     w = np.zeros(len(r["u"]))
     w[:h0] = 1.0
-    model, table, _ = screen_start(start, [(r["u"], r["y"], r["dt"])], [w], k1_grid=8)
+    model, table, info = screen_start(start, [(r["u"], r["y"], r["dt"])], [w], k1_grid=8)
     assert model.hysteresis.orientation == sign
+    assert "alternatives" not in info  # a clear sign goes on alone
     assert {row["orientation"] for row in table} == {1, -1}
     assert model.thermal.init == "given"
 
@@ -225,3 +226,28 @@ def test_fit_without_validation_split_warns_nothing():
         warnings.simplefilter("error", RuntimeWarning)
         _, doc, _ = fit_record(rec, split="none", model="eupi", max_steps=0)
     assert doc["metrics"]["validation"] is None
+
+
+def test_an_undecided_orientation_is_refined_both_ways_and_the_whole_record_fit_decides(tmp_path):
+    """Output with no relation to the input: both signs profile alike, so both are refined and refitted."""
+    import re
+
+    from smafl_jax._report_fit import fit_record
+
+    rng = np.random.default_rng(5)
+    u = random_reversals(rng, 240) * 3.0
+    y = 0.01 * rng.normal(size=u.size)
+    path = tmp_path / "noise.csv"
+    sj.atomic_write_csv(path, {"time_s": 0.1 * np.arange(u.size), "pressure_kPa": u, "displacement_mm": y})
+    rec = sj.load_record(path, input="pressure_kPa")
+    start = sj.EUPI.from_range(0.0, float(np.max(u)), n_sym=4, n_alpha=2, n_asym=2)
+    _, _, info = screen_start(start, [(u, y, 0.1)], [np.ones(u.size)], k1_grid=4)
+    (alt,) = info["alternatives"]
+    model, doc, _ = fit_record(rec, model="eupi", memory="rule", max_steps=3, grid=dict(n_sym=4, n_alpha=2, n_asym=2))
+    (note,) = [n for n in doc["notes"] if n.startswith("output orientation:")]
+    rmse = {m[0]: float(m[1]) for m in re.findall(r"(rises|falls) ([0-9.e-]+)", note.split("(")[1])}
+    assert set(rmse) == {"rises", "falls"}
+    assert note.endswith("-> " + min(rmse, key=rmse.get))
+    assert model.orientation == (1 if min(rmse, key=rmse.get) == "rises" else -1)
+    e = np.asarray(sj.simulate(model, rec.u, rec.dt)) - rec.y
+    np.testing.assert_allclose(np.sqrt(np.mean(e**2)), min(rmse.values()), rtol=1e-3)
