@@ -1,27 +1,14 @@
-"""``smafl control``: closed-loop PID / composite PID simulation of a saved model (paper section 4)."""
+"""``smafl control``: closed-loop PID / composite PID simulation of a saved model (paper section 4).
+
+The workflow is `smafl_jax.workflows.control.run_control`; this module parses the arguments, shows the
+workflow's notes and warnings on stderr and prints the result.  `add_loop_arguments`, `loop_options`,
+`OPTION_NAMES` and `workflow_lines_on_stderr` are shared with ``smafl sweep`` and ``smafl simulate``.
+"""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-import numpy as np
-
-from .._errors import UserInputError
-
-#: The bundled true cascade, found beside the package (``<repo>/datasets/truth.json``), not relative to the working
-#: folder, so the default works from any folder with a source checkout or an editable install (``pip install -e .``).
-DEFAULT_MODEL = Path(__file__).resolve().parents[2] / "datasets" / "truth.json"
-
-
-def _default_model() -> str:
-    """The bundled model's path; a clear error when the package was installed without the repository's datasets/."""
-    if not DEFAULT_MODEL.is_file():
-        raise UserInputError(
-            f"no --model given and the bundled default {DEFAULT_MODEL} is missing (an install without the repository's "
-            "datasets/ folder): pass --model MODEL.json or a fit.json"
-        )
-    return str(DEFAULT_MODEL)
+import contextlib
+import logging
 
 
 def add_loop_arguments(p):
@@ -64,151 +51,68 @@ def add_loop_arguments(p):
     p.add_argument("--seed", type=int, default=0, help="noise seed")
 
 
-#: Lower limits of the loop options (also applied to swept values): strictly positive / non-negative.
-POSITIVE_OPTIONS = ("dt", "duration", "umax", "tf")
-NONNEGATIVE_OPTIONS = ("noise", "quantum", "K", "kp", "ki", "kd", "eval_start")
+#: How the workflows' error messages name their settings: as the commands' flags.
+OPTION_NAMES = {
+    "dt": "--dt",
+    "duration": "--duration",
+    "umax": "--umax",
+    "tf": "--tf",
+    "noise": "--noise",
+    "quantum": "--quantum",
+    "K": "--K",
+    "kp": "--kp",
+    "ki": "--ki",
+    "kd": "--kd",
+    "eval_start": "--eval-start",
+    "model": "--model",
+    "reference": "--reference",
+    "controller": "--controller",
+    "x": "--x",
+    "y": "--y",
+    "top": "--top",
+    "calibrate": "--calibrate",
+    "calibrate_fit": "--calibrate-fit",
+    "measured": "--measured",
+    "metrics_file": "--metrics",
+    "output_name": "--output-name",
+    "method": "--method",
+    "initial_state": "--initial-state",
+}
 
-#: Most samples one closed-loop run may have (~1 GB of trajectory arrays at float64).
-MAX_SAMPLES = 10_000_000
+
+def loop_options(args) -> dict:
+    """The keyword arguments of `smafl_jax.workflows.control.build_loop` from the parsed loop options."""
+    names = ("model", "plant", "reference", "controller", "kp", "ki", "kd", "tf", "K", "dt", "duration", "umax", "noise")
+    names += ("quantum", "eval_start", "compensator_cascade", "seed")
+    return {name: getattr(args, name) for name in names}
 
 
-def check_option(name, value):
-    """`UserInputError` unless ``value`` is finite and within the limit of loop option ``name``."""
-    flag = "--" + name.replace("_", "-")
-    if name in POSITIVE_OPTIONS and not (np.isfinite(value) and value > 0):
-        raise UserInputError(f"{flag} must be > 0, got {value}")
-    if name in NONNEGATIVE_OPTIONS and not (np.isfinite(value) and value >= 0):
-        raise UserInputError(f"{flag} must be >= 0, got {value}")
+class _LineFormatter(logging.Formatter):
+    """Workflow log lines as the commands show them: warnings as ``warning: ...``, the rest as written."""
+
+    def format(self, record):
+        msg = record.getMessage()
+        return f"warning: {msg}" if record.levelno >= logging.WARNING else msg
 
 
-def _check_samples(span_s, dt, what):
-    n = span_s / dt + 1
-    if not np.isfinite(n) or n > MAX_SAMPLES:
-        raise UserInputError(
-            f"{what} of {span_s:g} s at --dt {dt:g} s is {n:.3g} samples, more than the limit of {MAX_SAMPLES:.0e}: "
-            "shorten it or use a larger --dt"
-        )
+@contextlib.contextmanager
+def workflow_lines_on_stderr(name: str = "smafl_jax.workflows"):
+    """Show the workflows' log lines (progress, notes, warnings) on stderr while the command runs."""
+    from .._progress import _StderrHandler
 
-
-def _read_reference_csv(path):
-    """(time, values, column name) from a reference CSV with a header; errors name the file and line."""
-    import csv
-
+    logger = logging.getLogger(name)
+    handler = _StderrHandler()
+    handler.setFormatter(_LineFormatter())
+    before = (logger.level, logger.propagate)
+    logger.addHandler(handler)
+    logger.propagate = False
+    logger.setLevel(logging.INFO)
     try:
-        with open(path, newline="") as f:
-            rows = [r for r in csv.reader(f) if any(c.strip() for c in r)]
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise UserInputError(f"{path}: cannot read as CSV ({exc})") from None
-    if not rows:
-        raise UserInputError(f"{path}: the reference file is empty; need a header with 'time_s' and a reference column")
-    header = [h.strip().lstrip("\ufeff") for h in rows[0]]
-    if "time_s" not in header or len(header) < 2:
-        raise UserInputError(f"{path}: need a 'time_s' column and a reference column, found {header}")
-    col = next(h for h in header if h != "time_s")
-    it, ic = header.index("time_s"), header.index(col)
-    t, r = [], []
-    for line, row in enumerate(rows[1:], start=2):
-        try:
-            t.append(float(row[it]))
-            r.append(float(row[ic]))
-        except (ValueError, IndexError):
-            raise UserInputError(f"{path}, row {line}: expected numbers in 'time_s' and '{col}', got {row}") from None
-    return np.asarray(t), np.asarray(r), col
-
-
-def load_reference(spec, dt, duration):
-    """Reference samples on the ``dt`` grid from 'sine', 'step' or a CSV file."""
-    from .._control import sine_reference, step_reference
-
-    if spec in ("sine", "step"):
-        _check_samples(duration, dt, "--duration")
-        return sine_reference(duration, dt) if spec == "sine" else step_reference(duration, dt)
-    path = Path(spec)
-    if not path.exists():
-        raise UserInputError(f"--reference {spec!r}: not 'sine' or 'step' and no such file")
-    if path.is_dir():
-        raise UserInputError(f"--reference {spec!r}: is a folder, expected a CSV file")
-    t, r, col = _read_reference_csv(path)
-    if len(t) < 2 or not np.all(np.isfinite(t)) or not np.all(np.isfinite(r)) or np.any(np.diff(t) <= 0):
-        raise UserInputError(f"{path}: time_s must be finite and increasing and '{col}' finite, with at least 2 rows")
-    _check_samples(t[-1] - t[0], dt, f"the reference in {path}")
-    grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
-    return np.interp(grid, t, r)
-
-
-def build_loop(args):
-    """(ClosedLoop, settings dict) from the parsed options."""
-    import jax
-    import jax.numpy as jnp
-
-    from .. import load_model_file
-    from .._control import PID, ClosedLoop, IICompensator
-
-    for name in POSITIVE_OPTIONS + NONNEGATIVE_OPTIONS:
-        check_option(name, getattr(args, name))
-    if args.model is None:
-        args.model = _default_model()
-    model, model_doc = load_model_file(args.model)
-    plant, plant_doc = load_model_file(args.plant) if args.plant else (model, model_doc)
-    ref = load_reference(args.reference, args.dt, args.duration)
-    if len(ref) < 2:
-        raise UserInputError("the reference has fewer than 2 samples: increase --duration or decrease --dt")
-    try:
-        comp = (
-            IICompensator(model, args.K, hysteresis_only=not args.compensator_cascade) if args.controller == "composite" else None
-        )
-        loop = ClosedLoop(
-            plant=plant,
-            pid=PID(args.kp, args.ki, args.kd, tf=args.tf, umin=0.0, umax=args.umax),
-            reference=jnp.asarray(ref),
-            compensator=comp,
-            noise_sd=jnp.asarray(args.noise),
-            quantum=jnp.asarray(args.quantum),
-            eval_start=jnp.asarray(args.eval_start),
-            key=jax.random.PRNGKey(args.seed),
-        )
-    except TypeError as exc:
-        raise UserInputError(str(exc)) from None
-    settings = {
-        "model": str(args.model),
-        "plant": str(args.plant or args.model),
-        "reference": args.reference,
-        "controller": args.controller,
-        "kp": args.kp,
-        "ki": args.ki,
-        "kd": args.kd,
-        "tf_s": args.tf,
-        "K": args.K if args.controller == "composite" else None,
-        "compensator_forward_model": ("cascade" if args.compensator_cascade else f"static {type(model.hysteresis).__name__}")
-        if args.controller == "composite"
-        else None,
-        "dt_s": args.dt,
-        "n_samples": int(len(ref)),
-        "u_range_V": [0.0, args.umax],
-        "noise_sd_mm": args.noise,
-        "quantum_mm": args.quantum,
-        "eval_start_s": args.eval_start,
-        "seed": args.seed,
-        "anti_windup": "conditional integration",
-        "plant_initial_state": "at rest at 0 V",
-        # the ranges the plant model was fitted on: a drive outside them runs the model where no data was
-        "plant_fitted_ranges": {k: (plant_doc.get("data") or {}).get(k) for k in ("input_range", "effective_input_range")},
-    }
-    return loop, settings
-
-
-def drive_range_checks(plant, settings, u, dt):
-    """Range checks of the controller's drive ``u`` against the plant model's fit, warnings printed to stderr."""
-    from .._range import model_range_checks
-
-    fitted = settings.get("plant_fitted_ranges") or {}
-    checks = model_range_checks(plant, fitted, np.asarray(u), dt, "drive u")
-    for chk in checks:
-        if chk.get("warning"):
-            print(f"warning: plant model: {chk['warning']}", file=sys.stderr)
-        elif chk.get("note"):
-            print(f"note: plant model: {chk['note']}", file=sys.stderr)
-    return checks
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(before[0])
+        logger.propagate = before[1]
 
 
 def add_parser(sub):
@@ -220,51 +124,13 @@ def add_parser(sub):
 
 
 def run(args):
-    import matplotlib
+    from ..workflows.control import run_control
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .._control import simulate_closed_loop
-    from .._io import atomic_savefig, atomic_write_csv, atomic_write_json, prepare_out_dir
-
-    loop, settings = build_loop(args)
-    out = prepare_out_dir(args.out)
-    print(f"simulating {settings['n_samples']} samples ({args.controller}) ...", file=sys.stderr)
-    metrics, traj = simulate_closed_loop(loop, args.dt)
-    metrics = {k: float(v) for k, v in metrics.items()}
-    traj = {k: np.asarray(v, dtype=np.float64) for k, v in traj.items()}
-    if not all(np.isfinite(v) for v in metrics.values()):
-        raise UserInputError("the closed loop produced non-finite values (unstable gains for this sample time?)")
-    t = traj["time_s"]
-    range_checks = drive_range_checks(loop.plant, settings, traj["u"], args.dt)
-    atomic_write_csv(
-        out / "trajectory.csv",
-        {k: traj[k] for k in ("time_s", "reference", "y", "y_meas", "error", "u", "u1", "u2", "saturated")},
-    )
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    ax1.plot(t, traj["reference"], "k--", label="reference")
-    ax1.plot(t, traj["y"], label=f"output ({args.controller})")
-    ax1.set_ylabel("displacement (mm)")
-    ax1.legend()
-    ax2.plot(t, traj["u"], label="drive u")
-    if args.controller == "composite":
-        ax2.plot(t, traj["u2"], label="I-I part u2", alpha=0.7)
-    ax2.set_ylabel("voltage (V)")
-    ax2.set_xlabel("time (s)")
-    ax2.legend()
-    fig.suptitle(f"{args.controller}, reference {Path(args.reference).name}: e_mean = {metrics['e_mean_mm']:.4g} mm")
-    atomic_savefig(fig, out / "tracking.png")
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(8, 3))
-    ax.plot(t, traj["error"])
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("tracking error y_d - y (mm)")
-    atomic_savefig(fig, out / "error.png")
-    plt.close(fig)
-    atomic_write_json(out / "metrics.json", {**metrics, "settings": settings, "range_checks": range_checks})
+    with workflow_lines_on_stderr():
+        res = run_control(out=args.out, option_names=OPTION_NAMES, **loop_options(args))
+    m = res.metrics
     print(
-        f"e_mean {metrics['e_mean_mm']:.4g} mm, rmse {metrics['rmse_mm']:.4g} mm, max |e| {metrics['max_abs_error_mm']:.4g} mm, "
-        f"saturated {100 * metrics['saturated_fraction']:.1f}% -> {out}"
+        f"e_mean {m['e_mean_mm']:.4g} mm, rmse {m['rmse_mm']:.4g} mm, max |e| {m['max_abs_error_mm']:.4g} mm, "
+        f"saturated {100 * m['saturated_fraction']:.1f}% -> {res.out}"
     )
     return 0

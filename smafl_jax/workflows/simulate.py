@@ -1,0 +1,323 @@
+"""Running a saved model on a record as one library call (the workflow behind ``smafl simulate``).
+
+`simulate_record` loads the model (a model file, a fit.json or a model object)
+and the record (a CSV path, resampled on request, or a `Record`), sets the start
+state, optionally re-anchors the model on a calibration segment of the record
+(`smafl_jax.recalibrate`), checks the input (or the re-anchored input) against
+the range the model was fitted on, simulates, scores against the measured
+column when there is one (after the segment, raw and re-anchored, with a
+calibration) and writes, atomically, the output CSV and the metrics JSON.
+Every setting and output path is checked before anything is written.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from .._errors import UserInputError
+from .control import option_namer
+
+if TYPE_CHECKING:
+    from .._data import Record
+
+PathLike = str | os.PathLike
+
+__all__ = ["SimulationResult", "simulate_record", "parse_segment", "INITIAL_STATES", "METHODS"]
+
+LOGGER = logging.getLogger(__name__)
+
+INITIAL_STATES = ("fit", "steady", "cold", "estimate")
+METHODS = ("auto", "scan", "assoc", "chunked", "segmented")
+CALIBRATION_DEFAULT = ("input_gain", "input_offset", "output_offset")
+
+
+class SimulationResult(NamedTuple):
+    """What `simulate_record` produced.
+
+    ``y``: the simulated output (re-anchored with a calibration); ``columns``: the output CSV's columns
+    (time, input, simulated output, the uncalibrated output with a calibration, the measured column);
+    ``output_name``: the simulated column's name; ``scores``: the metrics against the measured column (None
+    without one; with a calibration they cover the samples after the segment, raw and re-anchored);
+    ``calibration``: the re-anchoring (None without); ``range_checks``: the raw and effective input
+    against the fitted ranges; ``warnings`` / ``notes``: what was logged, as text; ``record`` and
+    ``model`` (the one simulated); ``out`` / ``metrics_file``: the files written (None when not asked).
+    """
+
+    y: np.ndarray
+    columns: dict[str, np.ndarray]
+    output_name: str
+    measured: str | None
+    scores: dict | None
+    calibration: dict | None
+    range_checks: list[dict]
+    warnings: list[str]
+    notes: list[str]
+    record: Record
+    model: Any
+    out: Path | None
+    metrics_file: Path | None
+
+
+def parse_segment(text: str | Sequence[float | None], option: str = "calibrate") -> tuple[float | None, float]:
+    """``"START:END"`` (seconds; START may be empty = the record's start) or ``(start, end)`` -> ``(start, end)``."""
+    if not isinstance(text, str):
+        try:
+            start, end = text
+            return (None if start is None else float(start)), float(end)
+        except (TypeError, ValueError):
+            raise UserInputError(f"{option} {text!r}: expected (start, end) in seconds, e.g. (0, 30)") from None
+    parts = text.split(":")
+    if len(parts) != 2 or not parts[1].strip():
+        raise UserInputError(f"{option} {text!r}: expected START:END in seconds, e.g. 0:30")
+    try:
+        start = float(parts[0]) if parts[0].strip() else None
+        end = float(parts[1])
+    except ValueError:
+        raise UserInputError(f"{option} {text!r}: START and END must be numbers of seconds, e.g. 0:30") from None
+    return start, end
+
+
+def _label(source) -> str:
+    if isinstance(source, (str, os.PathLike)):
+        return str(source)
+    path = getattr(source, "path", None)
+    return str(path) if path else f"<{type(source).__name__} object>"
+
+
+def _columns(rec) -> dict:
+    """The record's columns other than time and input, by name (a `Record` loaded with an output has it in ``y``)."""
+    cols = dict(rec.extra)
+    if rec.y is not None and rec.output_name:
+        cols.setdefault(rec.output_name, rec.y)
+    return cols
+
+
+def simulate_record(
+    model: PathLike | Any,
+    record: PathLike | Record,
+    *,
+    out: PathLike | None = None,
+    metrics_file: PathLike | None = None,
+    input: str | None = None,
+    output_name: str | None = None,
+    measured: str | None = None,
+    resample: float | str | None = None,
+    initial_state: str = "fit",
+    method: str | None = None,
+    calibrate: str | Sequence[float | None] | None = None,
+    calibrate_fit: str | Sequence[str] | None = None,
+    option_names: Mapping[str, str] | None = None,
+) -> SimulationResult:
+    """Run ``model`` on ``record``; write the output CSV to ``out`` and the scores to ``metrics_file`` (each if given).
+
+    ``model``: a model file or fit.json path (its input / output columns, sample time and fitted input
+    ranges are the defaults and the range checks) or a model object.  ``record``: a CSV path (``input``
+    picks the input column; ``resample``: None, seconds or ``"auto"`` for irregular time stamps) or a
+    `Record`.  ``measured``: the measured output column to score against (default the fit's output
+    column when present).  ``initial_state``: ``fit``, ``steady``, ``cold`` or ``estimate`` (from the
+    measured column).  ``method``: the evaluation form (``auto``, ``scan``, ``assoc``, ``chunked``,
+    ``segmented``; default the model's own).  ``calibrate``: ``"START:END"`` or ``(start, end)`` seconds of
+    the record on which to re-anchor the model (``calibrate_fit``: which of input_gain, input_offset,
+    output_offset, comma-separated or a sequence; default all); the scores then cover only the samples
+    after the segment.  ``metrics_file`` needs a measured column.  An existing ``out`` file is replaced
+    (logged as a note).  ``option_names``: how error messages name the settings.
+    """
+    from .._data import Record, load_record, parse_resample
+    from .._io import atomic_write_csv, atomic_write_json, check_writable_file, load_model_file
+    from .._simulate import simulate
+
+    o = option_namer(option_names)
+    warnings: list[str] = []
+    notes: list[str] = []
+
+    def note(text):
+        notes.append(text)
+        LOGGER.info(f"note: {text}")
+
+    def warn(text):
+        warnings.append(text)
+        LOGGER.warning(text)
+
+    if out is not None:
+        check_writable_file(out)  # before the simulation: a bad path fails at once
+    segment = parse_segment(calibrate, o("calibrate")) if calibrate is not None else None
+    if calibrate_fit is not None and segment is None:
+        raise UserInputError(f"{o('calibrate_fit')} needs {o('calibrate')} START:END")
+    fit_names = None
+    if segment is not None:
+        from .._recalibrate import _check_fit_names
+
+        names = calibrate_fit if calibrate_fit is not None else CALIBRATION_DEFAULT
+        if isinstance(names, str):
+            names = names.split(",")
+        fit_names = _check_fit_names([n.strip() for n in names if n.strip()])
+    if initial_state not in INITIAL_STATES:
+        raise UserInputError(f"{o('initial_state')} must be one of {INITIAL_STATES}, got {initial_state!r}")
+    if metrics_file is not None:
+        check_writable_file(metrics_file, "metrics file")
+    model_label, data_label = _label(model), _label(record)
+    if isinstance(model, (str, os.PathLike)):
+        model, doc = load_model_file(model)
+    else:
+        doc = {}
+    if method is not None:
+        from .._operators import model_with_method
+
+        try:
+            model = model_with_method(model, method)
+        except ValueError as exc:
+            raise UserInputError(f"{model_label}: {o('method')} {method}: {exc}") from None
+    data_info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
+    if isinstance(record, Record):
+        if input is not None or resample is not None:
+            raise UserInputError("input / resample apply to a CSV; a Record given as the data is loaded already")
+        rec = record
+    elif isinstance(record, (str, os.PathLike)):
+        in_col = input or data_info.get("input_column")
+        rec = load_record(record, input=in_col, require_output=False, min_samples=2, resample=parse_resample(resample))
+    else:
+        raise UserInputError(f"record: expected a CSV path or a Record, got a {type(record).__name__}")
+    for text in rec.processing:
+        note(f"loading {rec.name}: {text}")
+    fit_dt = data_info.get("sample_time_s")
+    if fit_dt and not np.isclose(fit_dt, rec.dt, rtol=0.02):
+        note(
+            f"the model was fitted at dt={fit_dt:g} s and this record has dt={rec.dt:g} s; "
+            "the thermal part accounts for it, a rate-independent EUPI does not care"
+        )
+    cols_in = _columns(rec)
+    measured_col = measured or data_info.get("output_column")
+    if initial_state != "fit":
+        from .._initial_state import with_initial_state
+
+        y_meas = np.asarray(cols_in[measured_col], dtype=np.float64) if measured_col in cols_in else None
+        model, start = with_initial_state(model, initial_state, rec.u, y_meas, rec.dt)
+        detail = f": thermal {start['thermal']}, operator memory {start['memory']}" if "thermal" in start else ""
+        note(f"initial state {initial_state}{detail}")
+    if measured and measured_col not in cols_in:
+        raise UserInputError(f"{data_label}: no column {measured_col!r} to score against; columns: {sorted(cols_in)}")
+    calibration = None
+    raw_model = model
+    if segment is not None:
+        from .._recalibrate import recalibrate
+
+        if measured_col not in cols_in:
+            raise UserInputError(
+                f"{o('calibrate')} needs the measured output column in {data_label} (see {o('measured')}); "
+                f"columns: {sorted(cols_in)}"
+            )
+        model, calibration = recalibrate(
+            model,
+            rec.u,
+            np.asarray(cols_in[measured_col], dtype=np.float64),
+            rec.dt,
+            segment,
+            fit=fit_names,
+            t0=float(rec.time[0]),
+        )
+        if metrics_file is not None and calibration["scored_from_sample"] >= len(rec):
+            raise UserInputError(
+                f"{o('calibrate')} {calibrate}: the segment reaches the end of the record, so nothing after it is left to score"
+            )
+        seg = calibration["segment"]
+        LOGGER.debug(  # the command line prints this line from the result
+            f"calibration on {seg['start_s']:.6g}-{seg['end_s']:.6g} s ({seg['n_samples']} samples, fitted: "
+            f"{', '.join(calibration['fitted'])}): input_gain {calibration['input_gain']:.6g}, input_offset "
+            f"{calibration['input_offset']:.6g}, output_offset {calibration['output_offset']:.6g}; segment RMSE "
+            f"{calibration['segment_rmse_before']:.4g} -> {calibration['segment_rmse_after']:.4g}"
+        )
+        if calibration["at_bound"]:
+            warn(
+                f"calibration: {', '.join(calibration['at_bound'])} ended at its bound {calibration['bounds']}: "
+                f"the segment does not determine it; use a longer segment or {o('calibrate_fit')} output_offset"
+            )
+    from .._range import model_range_checks
+
+    if calibration is None:
+        checks = model_range_checks(model, data_info, rec.u, rec.dt, rec.input_name)
+    else:  # the wrapped model sees the re-anchored input: that is the one to hold against the fitted range
+        u_seen = np.asarray(model.model_input(np.asarray(rec.u, dtype=np.float64)))
+        checks = model_range_checks(model.model, data_info, u_seen, rec.dt, f"{rec.input_name} (re-anchored)")
+    for chk in checks:
+        if chk.get("warning"):
+            warn(chk["warning"])
+        elif chk.get("note"):
+            note(chk["note"])
+    y = np.asarray(simulate(model, rec.u, rec.dt))
+    if not np.all(np.isfinite(y)):
+        raise UserInputError(f"{model_label}: the model produced non-finite output on {data_label}")
+    out_name = output_name or f"{data_info.get('output_column') or 'output'}_model"
+    if out_name in ("time_s", rec.input_name):
+        raise UserInputError(f"{o('output_name')} {out_name!r} clashes with an input column")
+    cols = {"time_s": rec.time, rec.input_name: rec.u, out_name: y}
+    scores = None
+    if calibration is not None:
+        y_raw = np.asarray(simulate(raw_model, rec.u, rec.dt))
+        raw_name = f"{out_name}_uncalibrated"
+        if raw_name in (rec.input_name, measured_col):
+            raise UserInputError(
+                f"{o('output_name')} {out_name!r}: the uncalibrated column {raw_name!r} clashes with a data column"
+            )
+        cols[raw_name] = y_raw
+    if measured_col in cols_in and measured_col != out_name:
+        from .._metrics import metrics
+
+        ym = np.asarray(cols_in[measured_col], dtype=np.float64)
+        if calibration is None:
+            scores = {"measured_column": measured_col, **metrics(ym, y)}
+        elif calibration["scored_from_sample"] < len(rec):
+            from .._recalibrate import after_segment_metrics
+
+            after = after_segment_metrics(ym, y_raw, y, calibration["scored_from_sample"])
+            scores = {
+                "measured_column": measured_col,
+                "scored_from_s": calibration["scored_from_s"],
+                "scored_from_sample": calibration["scored_from_sample"],
+                **after["recalibrated"],
+                "raw_after_segment": after["raw"],
+                "recalibrated_after_segment": after["recalibrated"],
+            }
+        cols[measured_col] = ym
+    if metrics_file is not None and scores is None:  # checked before anything is written
+        raise UserInputError(f"{o('metrics_file')} needs a measured output column in the CSV (see {o('measured')})")
+    if out is not None:
+        out = Path(out)
+        if out.exists():
+            note(f"replacing existing {out}")
+        atomic_write_csv(out, cols)
+    if metrics_file is not None:
+        metrics_file = Path(metrics_file)
+        atomic_write_json(
+            metrics_file,
+            {
+                "model": model_label,
+                "data": data_label,
+                "n_samples": len(rec),
+                **scores,  # with a calibration its n_samples counts the scored samples after the segment
+                **({"n_record_samples": len(rec), "calibration": calibration} if calibration is not None else {}),
+                "input_range_check": checks[0],
+                "effective_input_range_check": checks[1] if len(checks) > 1 else None,
+                "processing": list(rec.processing),
+            },
+        )
+    return SimulationResult(
+        y=y,
+        columns=cols,
+        output_name=out_name,
+        measured=measured_col if scores is not None else None,
+        scores=scores,
+        calibration=calibration,
+        range_checks=checks,
+        warnings=warnings,
+        notes=notes,
+        record=rec,
+        model=model,
+        out=out,
+        metrics_file=metrics_file,
+    )
