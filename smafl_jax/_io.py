@@ -17,6 +17,7 @@ import contextlib
 import dataclasses
 import io
 import json
+import logging
 import math
 import os
 import sys
@@ -373,7 +374,11 @@ def prepare_out_dir(out, *, announce=True, stream=None):
         raise UserInputError(f"cannot write to output folder {out}: {_os_message(exc)}") from None
     if existing and announce:
         shown = ", ".join(existing[:6]) + (" ..." if len(existing) > 6 else "")
-        print(f"note: {out} already holds results ({shown}); files of the same name will be replaced", file=stream or sys.stderr)
+        msg = f"note: {out} already holds results ({shown}); files of the same name will be replaced"
+        if stream is not None:
+            print(msg, file=stream)
+        else:  # library code logs; with no logging configured, Python's last-resort handler shows it on stderr
+            logging.getLogger(__name__).warning(msg)
     return out
 
 

@@ -2,13 +2,12 @@
 
 The workflow is `smafl_jax.workflows.control.run_control`; this module parses the arguments, shows the
 workflow's notes and warnings on stderr and prints the result.  `add_loop_arguments`, `loop_options`,
-`OPTION_NAMES` and `workflow_lines_on_stderr` are shared with ``smafl sweep`` and ``smafl simulate``.
+`OPTION_NAMES` (and `workflow_lines_on_stderr`, from `cli._lines`) are shared with ``smafl sweep`` and ``smafl simulate``.
 """
 
 from __future__ import annotations
 
-import contextlib
-import logging
+from ._lines import workflow_lines_on_stderr
 
 
 def add_loop_arguments(p):
@@ -85,34 +84,6 @@ def loop_options(args) -> dict:
     names = ("model", "plant", "reference", "controller", "kp", "ki", "kd", "tf", "K", "dt", "duration", "umax", "noise")
     names += ("quantum", "eval_start", "compensator_cascade", "seed")
     return {name: getattr(args, name) for name in names}
-
-
-class _LineFormatter(logging.Formatter):
-    """Workflow log lines as the commands show them: warnings as ``warning: ...``, the rest as written."""
-
-    def format(self, record):
-        msg = record.getMessage()
-        return f"warning: {msg}" if record.levelno >= logging.WARNING else msg
-
-
-@contextlib.contextmanager
-def workflow_lines_on_stderr(name: str = "smafl_jax.workflows"):
-    """Show the workflows' log lines (progress, notes, warnings) on stderr while the command runs."""
-    from .._progress import _StderrHandler
-
-    logger = logging.getLogger(name)
-    handler = _StderrHandler()
-    handler.setFormatter(_LineFormatter())
-    before = (logger.level, logger.propagate)
-    logger.addHandler(handler)
-    logger.propagate = False
-    logger.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(before[0])
-        logger.propagate = before[1]
 
 
 def add_parser(sub):

@@ -10,9 +10,9 @@ arguments and prints its results.
 
 from __future__ import annotations
 
-import contextlib
-import logging
 import sys
+
+from ._lines import workflow_lines_on_stderr
 
 
 def add_parser(sub):
@@ -72,30 +72,10 @@ OPTION_NAMES = {
 }
 
 
-@contextlib.contextmanager
-def _workflow_lines_on_stderr(name):
-    """Show the workflow's log lines (notes, what is sampled) on stderr as plain lines while the command runs."""
-    from .._progress import _StderrHandler
-
-    logger = logging.getLogger(name)
-    handler = _StderrHandler()
-    handler.setFormatter(logging.Formatter("%(message)s"))
-    before = (logger.level, logger.propagate)
-    logger.addHandler(handler)
-    logger.propagate = False
-    logger.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(before[0])
-        logger.propagate = before[1]
-
-
 def run(args):
     from ..workflows import sample as W
 
-    with _workflow_lines_on_stderr(W.__name__):
+    with workflow_lines_on_stderr(W.__name__, warning_prefix=False):
         res = W.sample_posterior(
             args.data_csv,
             args.fit,
