@@ -75,6 +75,7 @@ for seed in seeds:
         sec = time.time() - t0
         yh = np.asarray(sj.simulate(model, rec.u, rec.dt))
         e = yh - rec.y
+        screening = doc["settings"].get("start_screening") or []
         row = dict(
             cell=name,
             seed=seed,
@@ -88,6 +89,12 @@ for seed in seeds:
             sensor=r["truth"]["sensor"]["orientation"],
             fit_orientation=getattr(getattr(model, "hysteresis", None), "orientation", None),
             orientation_ambiguous=any(n.startswith("output orientation:") for n in doc.get("notes", [])),
+            profiled_loss_by_sign={
+                str(sign): min(
+                    (row["loss"] for row in screening if row["orientation"] == sign and row.get("loss") is not None), default=None
+                )
+                for sign in (1, -1)
+            },
             opts=OPTS,
         )
         rows.append(row)
