@@ -88,7 +88,7 @@ for seed in seeds:
             memory=r["truth"]["hysteresis"]["memory"]["kind"],
             sensor=r["truth"]["sensor"]["orientation"],
             fit_orientation=getattr(getattr(model, "hysteresis", None), "orientation", None),
-            orientation_ambiguous=any(n.startswith("output orientation:") for n in doc.get("notes", [])),
+            orientation_ambiguous=any(n.startswith("output orientation") for n in doc.get("notes", [])),
             profiled_loss_by_sign={
                 str(sign): min(
                     (row["loss"] for row in screening if row["orientation"] == sign and row.get("loss") is not None), default=None
