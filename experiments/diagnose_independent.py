@@ -72,8 +72,34 @@ def run_one(name, seed, folder, n_null, fpr):
             if c.get("fitted")
         ],
         "evidence_top3": res["evidence_ranking"][:3],
+        "unexplained": _unexplained_row(res.get("unexplained")),
         "seconds": time.time() - t0,
     }
+
+
+def _unexplained_row(ux):
+    """The honest 'unexplained' answer in short: structure left, strongest correlate, generic correction before/after."""
+    if not ux:
+        return None
+    c, s = ux.get("correction", {}), ux.get("strongest_correlate") or {}
+    return {
+        "structure_left": ux["structure_left"],
+        "strongest_correlate": s.get("signal"),
+        "strongest_corr": s.get("corr"),
+        **{k: c.get(k) for k in ("heldout_rmse_before", "heldout_rmse_after", "heldout_e_r_before", "heldout_e_r_after")},
+        "predictable": c.get("predictable"),
+        "ridge": c.get("ridge"),
+    }
+
+
+def _unexplained_text(u):
+    if not u or u.get("heldout_rmse_after") is None:
+        return "n/a"
+    return (
+        f"{'left' if u['structure_left'] else 'none left'}, {u['strongest_correlate']} ({u['strongest_corr']:+.2f}); "
+        f"RMSE {u['heldout_rmse_before']:.4g} -> {u['heldout_rmse_after']:.4g}"
+        f"{'' if u['predictable'] else ' (not predictable)'}"
+    )
 
 
 def _table(rows, key):
@@ -148,7 +174,8 @@ def main(argv=None) -> int:
             rows.append(r)
             print(
                 f"{name:>20s}: old {_label(r['selected_old'])}, new {_label(r['selected_new'])}; base held-out RMSE "
-                f"{r['base_heldout_rmse']:.4g} mm = {r['base_heldout_over_noise']:.1f} x noise ({r['seconds']:.0f} s)",
+                f"{r['base_heldout_rmse']:.4g} mm = {r['base_heldout_over_noise']:.1f} x noise ({r['seconds']:.0f} s); "
+                f"unexplained: {_unexplained_text(r['unexplained'])}",
                 file=sys.stderr,
                 flush=True,
             )
@@ -185,8 +212,9 @@ def main(argv=None) -> int:
         "",
         "## Per record",
         "",
-        "| truth | variant | n | effect / noise | base held-out RMSE / noise | old | new | new: decisions |",
-        "|---|---|---|---|---|---|---|---|",
+        "| truth | variant | n | effect / noise | base held-out RMSE / noise | old | new | new: decisions | unexplained: "
+        "structure, strongest correlate, held-out RMSE before -> after the generic correction |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         c = r["case"]
@@ -194,7 +222,7 @@ def main(argv=None) -> int:
         en = "" if c.get("effect_over_noise") is None else f"{c['effect_over_noise']:.1f}"
         lines.append(
             f"| {r['truth']} | {c.get('effect_variant', '')} | {c['n']} | {en} | {r['base_heldout_over_noise']:.1f} | "
-            f"{_label(r['selected_old'])} | {_label(r['selected_new'])} | {dec} |"
+            f"{_label(r['selected_old'])} | {_label(r['selected_new'])} | {dec} | {_unexplained_text(r['unexplained'])} |"
         )
     atomic_write_json(out.with_suffix(".json"), to_jsonable({"summary": summary, "rows": rows}))
     atomic_write_text(out.with_suffix(".md"), "\n".join(lines) + "\n")

@@ -1104,6 +1104,7 @@ def diagnose(
     seed=0,
     compare_legacy=False,
     screen=True,
+    unexplained=True,
 ):
     """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
 
@@ -1120,6 +1121,10 @@ def diagnose(
     the (1 - ``fpr``) quantile of ``n_null`` parametric-bootstrap null records; ``seed`` seeds the nulls);
     ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC);
     ``compare_legacy`` also records what it would select (``result["selection"]["legacy_selected"]``).
+
+    ``unexplained`` (after the selection, never changing it): ``result["unexplained"]`` says whether the held-out
+    residual still has structure, names its strongest correlate and scores a generic, clearly labelled ridge
+    regression of the residual on the candidate signals, fitted on the training residual (`smafl_jax._unexplained`).
     """
     if rule not in SELECTION_RULES:
         raise UserInputError(f"rule must be one of {SELECTION_RULES}, got {rule!r}")
@@ -1341,6 +1346,21 @@ def diagnose(
         "ext_train": ext_res_tr,
         "ext_heldout": ext_res_te,
     }
+    if unexplained:
+        from ._unexplained import unexplained_report
+
+        result["unexplained"], result["_residual_arrays"]["unexplained"] = unexplained_report(
+            chosen,
+            split,
+            ext_res_tr,
+            ext_res_te,
+            selected=selected,
+            whiteness=result["extended"]["residuals_heldout"]["whiteness"],
+            strongest=strongest,
+            simulate=simulate_segment,
+            min_gain=min_gain,
+        )
+        _log(f"unexplained: {result['unexplained']['verdict']}", verbose)
     unwrapped = chosen if selected else base.base
     if refit:
         base_all, ext_all, info = refit_whole_record(record, base.base, unwrapped, result, verbose)

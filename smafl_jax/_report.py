@@ -162,6 +162,17 @@ def _report_md(rec, res):
             "",
             f"Strongest remaining held-out residual correlate: `{s['signal']}` (corr {s['corr']:+.3f}, p {s['p_value']:.2g}).",
         ]
+    ux = res.get("unexplained")
+    if ux:
+        c = ux.get("correction", {})
+        L += ["", f"**Unexplained:** {ux['verdict']}."]
+        if "heldout_rmse_after" in c:
+            terms = ", ".join(f"`{k}` {v:+.3g}" for k, v in c["largest_terms_per_sd"].items())
+            L.append(
+                f"The {c['label']} is fitted on the training residual only (ridge {c['ridge']:g}, {c['ridge_rule']}); "
+                f"largest terms per standard deviation of the signal: {terms}. It is not part of `extended_fit.json` "
+                "and did not take part in the selection (`residual_correction.png`)."
+            )
     d = res.get("deployed")
     if d:
         L += [
@@ -203,6 +214,11 @@ def write_diagnosis(out, rec, res, base, ext, split):
         f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})",
         ylabel,
     )
+    if arrays is not None and arrays.get("unexplained") is not None:
+        from ._unexplained import plot_correction
+
+        rlabel = ylabel.replace(ylabel.split(" (")[0], "residual", 1)
+        plot_correction(out / "residual_correction.png", arrays["unexplained"], f"{rec.name}: what is left unexplained", rlabel)
     atomic_write_text(out / "report.md", _report_md(rec, res))
     if arrays is not None:
         res["_residual_arrays"] = arrays

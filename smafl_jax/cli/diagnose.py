@@ -104,4 +104,6 @@ def run(args):
         f"selected: {sel}; held-out RMSE {res['base']['heldout_rmse']:.4g} -> {res['extended']['heldout_rmse']:.4g} "
         f"(e_r {res['base']['heldout']['e_r_percent']:.2f} % -> {res['extended']['heldout']['e_r_percent']:.2f} %); wrote {out}"
     )
+    if res.get("unexplained"):
+        print(f"unexplained: {res['unexplained']['verdict']}")
     return 0
