@@ -40,8 +40,7 @@ _VOLTAGE_UNITS = ("v", "volt", "volts")
 #: Start candidates of the screening besides "steady": initial effective voltage as a fraction of the input maximum.
 START_FRACTIONS = (COLD_FRACTION, 0.35, 0.65, 0.95)
 
-#: Output signs (and, within a sign, hysteresis inputs) whose best profiled losses are within this factor all go on
-#: to the caller's refinement.
+#: Output signs whose best profiled losses are within this factor both go on to the caller's refinement.
 #: A wrong sign usually costs 10-100x in profiled loss; close calls measured: an independent warm step-train
 #: record 1.23 (the profiled best was the wrong sign), NiTi wire records 1.1-1.4 (refining both lowered the
 #: held-out RMSE of 2 of 5), the 20-minute PWM benchmark record 1.9 (its profiled sign was right). Refining
@@ -176,7 +175,9 @@ def screen_start(
     or anywhere between), and the best candidate is refined jointly in ``(k1, u0)``
     (`refine_thermal_start`) into a fitted initial effective voltage ``u0`` (one record only).
     Returns ``(model, table, info)``: the profiled start, one row per candidate and the winner's
-    initialiser info (k1 profile).
+    initialiser info (k1 profile).  ``info["alternatives"]`` (when present): further finished starts
+    (the other output sign) that the profiled losses cannot rule out
+    (`ORIENTATION_AMBIGUITY`); `fit_record` refines each and keeps the best whole-record fit.
 
     ``val_weights`` (held-out samples, optional): the hysteresis input is then chosen by the
     held-out error of each input's best candidate, not by training loss.  Measured on independent
@@ -272,12 +273,13 @@ def screen_start(
 
 def _finish_sign(sign, inputs, rest, results, table, candidate, report, data, weights, val_weights, free_start, u_hi,
                  memory, say, t_all):  # fmt: skip
-    """Screen the remaining starts of one output sign: ``[(model, loss, info), ...]``, its best profiled start first.
+    """Screen the remaining starts of one output sign: ``[(model, loss, info)]`` of its best profiled start.
 
-    The hysteresis input is chosen on the held-out samples when given; an input whose best training loss is
-    within `ORIENTATION_AMBIGUITY` of the other's stays in the list as well, for the caller's refinement to decide
-    (measured on an independent warm step-train record: training losses 0.054 heat vs 0.056 voltage, the held-out
-    block chose voltage, whose whole-record fit then stayed at 3.9x noise on its own training data).
+    The hysteresis input is chosen on the held-out samples when given.  Tried and not kept: refining both inputs
+    when their training losses are close or disagree with the held-out choice, and keeping the better
+    whole-record fit (as for the output sign).  On an independent warm step-train record it chose the plant's own
+    input (heat; whole-record training 3.5x vs 3.9x noise) but the held-out error rose from 19x to 54x noise, at
+    twice the fit time: the miss there is the operators' initial memory, not the input.
     """
     for inp in inputs:
         for th in rest:
@@ -298,12 +300,7 @@ def _finish_sign(sign, inputs, rest, results, table, candidate, report, data, we
                 if row["orientation"] == sign:
                     row["heldout_sse_of_input"] = scores.get(row["sees"])
             say(f"  hysteresis input chosen on held-out error: {chosen} ({', '.join(f'{k} {v:.4g}' for k, v in scores.items())})")
-    close = [
-        c
-        for inp, c in best_by_input.items()
-        if c is not best and max(best[0], c[0]) <= ORIENTATION_AMBIGUITY * min(best[0], c[0])
-    ]
-    return [_finish_start(c, data, weights, free_start, u_hi, memory, table, say, t_all) for c in (best, *close)]
+    return [_finish_start(best, data, weights, free_start, u_hi, memory, table, say, t_all)]
 
 
 def _finish_start(best, data, weights, free_start, u_hi, memory, table, say, t_all):
