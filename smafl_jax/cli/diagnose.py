@@ -50,6 +50,11 @@ def add_parser(sub):
         help="base model start: 'screened' (default: output orientation, hysteresis input and thermal start chosen on the "
         "training samples, as smafl fit does) or 'fixed' (rising output, at rest with the first input: earlier versions)",
     )
+    p.add_argument(
+        "--no-unexplained",
+        action="store_true",
+        help="skip the generic residual regression on the correlates (the 'unexplained' answer; never changes the selection)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
     return p
@@ -90,6 +95,7 @@ def run(args):
         n_folds=args.n_folds,
         seed=args.seed,
         screen=args.base_start == "screened",
+        unexplained=not args.no_unexplained,
     )
     write_diagnosis(out, rec, res, base, ext, split)
     warning = res["split"].get("coverage", {}).get("warning")
