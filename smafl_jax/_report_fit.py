@@ -163,18 +163,11 @@ def fit_record(
         e = float(np.mean((yh[va] - rec.y[va]) ** 2))
         return e if np.isfinite(e) else np.inf
 
-    # A start structure (output sign, hysteresis input) the profiled start could not decide (`screen_start`)
-    # goes on to the refinement.
+    # An output sign the profiled start could not decide (`screen_start`) goes on to the refinement too.
     starts = [start, *screen_info.get("alternatives", [])]
 
     def sign_of(m):
-        """How the start structures differ: output sign and, for a cascade, the hysteresis input."""
-        sees = (
-            f", hysteresis sees {m.sees}"
-            if getattr(m, "sees", None) and len({getattr(x, "sees", None) for x in starts}) > 1
-            else ""
-        )
-        return ("rises" if hysteresis_of(m).orientation > 0 else "falls") + sees
+        return "rises" if hysteresis_of(m).orientation > 0 else "falls"
 
     picks = []
     for s in starts:
@@ -211,7 +204,7 @@ def fit_record(
     chosen = 0
     if len(picks) > 1:
         if do_refit:
-            # Equal parameter counts: the structure whose whole-record fit has the lower training error wins.
+            # Equal parameter counts: the sign whose whole-record fit has the lower training error wins.
             # Why not the validation block: it walks branches the training part never saw (measured on an
             # independent warm step-train record: validation preferred "falls", 8x vs 15x noise, whose whole-record
             # fit then stayed at 3.2x noise on its own training data and 22x on new data; "rises": 1.2x and 3.1x).
@@ -229,10 +222,8 @@ def fit_record(
             mse = [float(np.mean((p[2][tr] - rec.y[tr]) ** 2)) for p in picks]
             chosen = int(np.nanargmin(mse))
             how = "training RMSE " + ", ".join(f"{sign_of(p[1].model)} {np.sqrt(v):.4g}" for p, v in zip(picks, mse))
-        signs = {hysteresis_of(p[1].model).orientation for p in picks}
-        what = "output orientation" + (" / hysteresis input" if len(signs) < len(picks) else "")
         notes.append(
-            f"{what}: the profiled start could not decide; each was refined and the one with the lower "
+            f"output orientation: the profiled start could not decide; each was refined and the one with the lower "
             f"{how.split(' RMSE ')[0]} RMSE kept ({how}) -> {sign_of(picks[chosen][1].model)}"
         )
     label, res, yhat, refinement, note = picks[chosen]
