@@ -96,6 +96,8 @@ def with_initial_state(model, rule, u=None, y=None, dt=None):
         return model, {"rule": "fit"}
     if rule == "estimate":
         if y is None:
-            raise UserInputError("--initial-state estimate needs the measured output column in the CSV (see --measured)")
+            raise UserInputError(
+                "the initial-state rule 'estimate' needs the measured output (y; from the command line: --measured COLUMN)"
+            )
         return estimate_initial_state(model, u, y, dt)
     return _descended(_thermal_variant(model, rule)), {"rule": rule}
