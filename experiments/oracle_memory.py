@@ -55,6 +55,23 @@ def fit_score(Phi, XC, y, h0, sd, ridge=0.0):
     return best
 
 
+def fit_score_mask(Phi, XC, y, mask, h0, sd):
+    """[train (masked samples), held-out] RMSE / noise of the bounded least-squares fit on the ``mask`` samples."""
+    n_ops = Phi.shape[1]
+    best = None
+    for s in (1, -1):
+        A = np.hstack([s * Phi, XC])
+        lb = np.r_[np.zeros(n_ops), -np.inf * np.ones(4)]
+        sc = np.linalg.norm(A[mask], axis=0) + 1e-12
+        res = lsq_linear(A[mask] / sc, y[mask], bounds=(lb, np.inf * np.ones(A.shape[1])), method="bvls")
+        yh = A @ (res.x / sc)
+        tr = np.sqrt(np.mean((yh[mask] - y[mask]) ** 2)) / sd
+        he = np.sqrt(np.mean((yh[h0:] - y[h0:]) ** 2)) / sd
+        if best is None or tr < best[0]:
+            best = (tr, he)
+    return best
+
+
 CELLS = {
     "pwm_cold": dict(drive="pwm", rate_hz=25, start="cold"),
     "stair_warm": dict(drive="staircase", rate_hz=10, start="warm"),
@@ -62,7 +79,10 @@ CELLS = {
     "steps_warm": dict(drive="steps", rate_hz=10, start="warm"),
     "ms_cold": dict(drive="multisine", rate_hz=25, start="cold"),
 }
-todo = [("pwm_cold", 7), ("stair_warm", 11), ("steps_warm", 13)]
+if __name__ != "__main__":
+    todo = []
+else:
+    todo = [("pwm_cold", 7), ("stair_warm", 11), ("steps_warm", 13)]
 for cell, seed in todo:
     r = ip.make_record(seed, minutes=10, **CELLS[cell])
     h0, sd, hy = r["heldout_start"], r["noise_sd"], r["truth"]["hysteresis"]
