@@ -7,8 +7,8 @@ import json
 from pathlib import Path
 
 import smafl_jax as sj
-from smafl_jax import _paper
 from smafl_jax._io import to_jsonable
+from smafl_jax.paper import _paper
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -3,7 +3,7 @@
 Each record: the true cascade (datasets/truth.json) driven by the bundled drives
 (steps, main loop, minor loops; dt 0.5 s), plus one catalogue effect with a
 random seeded strength (or none), plus 3 um Gaussian noise.  The diagnosis runs
-blind (`smafl_jax._diagnose.diagnose`); rows = true effect, columns = selection.
+blind (`smafl_jax.diagnosis._diagnose.diagnose`); rows = true effect, columns = selection.
 
 Run:  python experiments/diagnose_confusion.py --seeds 3 [--jobs 2] [--out experiments/results/diagnose_confusion.json]
 """
@@ -32,7 +32,7 @@ def _gen():
 def run_one(args):
     effect, seed = args
     import smafl_jax as sj
-    from smafl_jax._diagnose import diagnose, synthetic_effect_record
+    from smafl_jax.diagnosis._diagnose import diagnose, synthetic_effect_record
 
     truth = sj.load_model(ROOT / "datasets" / "truth.json")
     rec, true = synthetic_effect_record(truth, _gen().drives(), effect, seed)
@@ -51,7 +51,7 @@ def run_one(args):
 
 
 def main(argv=None):
-    from smafl_jax._effects import EFFECT_NAMES
+    from smafl_jax.effects import EFFECT_NAMES
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3)

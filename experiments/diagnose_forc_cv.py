@@ -21,7 +21,7 @@ FIXED = (["output_saturation"], ["input_warp"], ["output_saturation", "input_war
 
 def main(argv=None):
     from smafl_jax import atomic_write_json, load_record
-    from smafl_jax._diagnose import _metrics_pair, diagnose, fit_extended
+    from smafl_jax.diagnosis._diagnose import _metrics_pair, diagnose, fit_extended
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
@@ -42,7 +42,7 @@ def main(argv=None):
             "parameters": res["extended"]["parameters"],
             "fixed": {},
         }
-        from smafl_jax._effects import ExtendedModel
+        from smafl_jax.effects import ExtendedModel
 
         b = ExtendedModel(base, ())
         b, _ = fit_extended(b, [], split)

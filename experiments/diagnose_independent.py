@@ -36,7 +36,7 @@ def _label(sel):
 
 def run_one(name, seed, folder, n_null, fpr):
     import smafl_jax as sj
-    from smafl_jax._diagnose import diagnose
+    from smafl_jax.diagnosis._diagnose import diagnose
 
     path, case = ie.write_effect_record(folder, name, seed)
     rec = sj.load_record(path)
@@ -123,8 +123,8 @@ def fpr_check(n_records, n_null, fpr, seed=0):
     import numpy as np
 
     import smafl_jax as sj
-    from smafl_jax._diagnose import diagnose
-    from smafl_jax._effects import ExtendedModel
+    from smafl_jax.diagnosis._diagnose import diagnose
+    from smafl_jax.effects import ExtendedModel
 
     spec = importlib.util.spec_from_file_location("gen", ROOT / "datasets" / "generate.py")
     gen = importlib.util.module_from_spec(spec)

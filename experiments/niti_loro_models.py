@@ -8,7 +8,7 @@ what follows it.  Input: ``temperature_front_C`` (the issue's input) unless a mo
 ``length_signal``.
 
 Models:
-- ``poly3``: static cubic of the temperature (``smafl_jax._baselines.fit_static_poly``, the issue's baseline).
+- ``poly3``: static cubic of the temperature (``smafl_jax.identify._baselines.fit_static_poly``, the issue's baseline).
 - ``toolkit_joint``: ``smafl_jax.fit_records`` with its defaults (model auto), one fold model per held-out record.
 - ``leadlag_poly3``: cubic of ``x``, a causal lead-lag filter of the temperature,
   ``x_s[k] = a x_s[k-1] + (1-a) T[k]`` (``a = exp(-dt/tau_f)``), ``x = x_s + g (T - x_s)``, i.e.

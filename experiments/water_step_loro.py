@@ -4,7 +4,7 @@ Each water-step record is one heating step, a hold and one cooling step; the def
 (last 30 % held out) puts the only cooling transition into the held-out block, so the descending
 branch is never trained.  Here the model (EUPI on temperature_front_C, u_ref = global input minimum,
 + effects) is trained on three whole records and scored on the fourth, which then contains both
-branches in training.  Fitting: `smafl_jax._diagnose.fit_extended` (variable projection), as in `diagnose`.
+branches in training.  Fitting: `smafl_jax.diagnosis._diagnose.fit_extended` (variable projection), as in `diagnose`.
 
 Run:  OPENBLAS_NUM_THREADS=1 python experiments/water_step_loro.py [--data ../shared/data/real]
       -> experiments/results/water_step_loro.json
@@ -27,7 +27,7 @@ VARIANTS = [[], ["creep"], ["strain_accumulation"], ["creep", "strain_accumulati
 
 def main(argv=None):
     from smafl_jax import EUPI, atomic_write_json, load_record
-    from smafl_jax._diagnose import Split, _effect_params, _metrics_pair, _segment, fit_extended
+    from smafl_jax.diagnosis._diagnose import Split, _effect_params, _metrics_pair, _segment, fit_extended
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))

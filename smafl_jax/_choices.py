@@ -6,9 +6,9 @@ import JAX first (seconds), which `--help` should not pay.
 
 #: Joint-refinement solvers of `smafl_jax.fit`.
 SOLVERS = ("lm", "gauss_newton", "bfgs", "lbfgsb", "projected_gradient")
-#: Registry of the hysteresis models (`smafl_jax._hysteresis.AbstractHysteresis`): CLI name -> "module:class".
+#: Registry of the hysteresis models (`smafl_jax.models._hysteresis.AbstractHysteresis`): CLI name -> "module:class".
 #: A new hysteresis model is one class in one module plus one line here (`smafl fit --model NAME`).
-HYSTERESIS = {"eupi": "_eupi:EUPI", "preisach": "_preisach:Preisach"}
+HYSTERESIS = {"eupi": "models._eupi:EUPI", "preisach": "models._preisach:Preisach"}
 #: Model structures `smafl fit --model` accepts.
 MODELS = ("auto", "eupi", "cascade", "joule", *(k for k in HYSTERESIS if k != "eupi"))
 #: Validation split rules of one record.

@@ -83,7 +83,7 @@ def _registered(name):
 
         _load_all()
     if name not in _REGISTRY:  # a hysteresis model registered in _choices.HYSTERESIS but not (yet) a public export
-        from ._hysteresis import hysteresis_models
+        from .models._hysteresis import hysteresis_models
 
         hysteresis_models()
     return _REGISTRY.get(name)

@@ -1,11 +1,12 @@
-"""Baselines beside every fit (smafl_jax._baselines): static polynomial and free-run first-order lag."""
+"""Baselines beside every fit (smafl_jax.identify._baselines): static polynomial and free-run first-order lag."""
 
 import math
 
 import numpy as np
 import pytest
 
-from smafl_jax._baselines import (
+from smafl_jax._errors import UserInputError
+from smafl_jax.identify._baselines import (
     LAG_GRID,
     baselines_doc,
     compare_sentences,
@@ -15,7 +16,6 @@ from smafl_jax._baselines import (
     score,
     tau_grid,
 )
-from smafl_jax._errors import UserInputError
 
 
 def lowpass_loop(s, dt, tau):

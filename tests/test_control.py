@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax._control import (
+from smafl_jax.control._control import (
     PID,
     ClosedLoop,
     IICompensator,
@@ -26,7 +26,7 @@ from smafl_jax._control import (
     sine_reference,
     step_reference,
 )
-from smafl_jax._sweep import batch_configs, stack_models, sweep
+from smafl_jax.control._sweep import batch_configs, stack_models, sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -248,8 +248,8 @@ _SHARD_SCRIPT = textwrap.dedent(
     import json, sys
     import jax, jax.numpy as jnp, numpy as np
     import smafl_jax as sj
-    from smafl_jax._control import PID, ClosedLoop, IICompensator, step_reference
-    from smafl_jax._sweep import sweep
+    from smafl_jax.control._control import PID, ClosedLoop, IICompensator, step_reference
+    from smafl_jax.control._sweep import sweep
     assert len(jax.devices()) == 4, jax.devices()
     truth = sj.load_model(sys.argv[1])
     dt = 0.05

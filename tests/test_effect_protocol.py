@@ -80,7 +80,7 @@ def test_registry_is_the_catalogue():
         "load_dependence",
         "strain_accumulation",
     ]
-    from smafl_jax._effects import Effect  # the old base-class name still imports
+    from smafl_jax.effects import Effect  # the old base-class name still imports
 
     assert Effect is AbstractEffect
     for name, cls in EFFECTS.items():
@@ -102,7 +102,7 @@ def test_grid_probes_and_synthetic_run_finite(cls, cascade, drive, rng):
 
 @pytest.mark.parametrize("cls", ALL_EFFECTS, ids=_ids)
 def test_nonlinear_parameters_round_trip(cls, cascade):
-    from smafl_jax._diagnose import _get_phi, _phi_layout, _set_phi
+    from smafl_jax.diagnosis._diagnose import _get_phi, _phi_layout, _set_phi
 
     pars = cls.nonlinear(CTX)
     fields = [p.field for p in pars]
@@ -194,7 +194,7 @@ class InputPower(AbstractWarpEffect):
 
 
 def test_a_new_effect_needs_no_library_change(cascade, drive, monkeypatch):
-    from smafl_jax._diagnose import (
+    from smafl_jax.diagnosis._diagnose import (
         applicable_effects,
         effect_evidence,
         fit_extended,

@@ -137,7 +137,7 @@ def test_nan_region_never_returned():
 
 def test_divergence_is_reported_and_start_kept(monkeypatch):
     """A refinement that returns NaN is discarded with a message saying so and why."""
-    from smafl_jax import _fit
+    from smafl_jax.identify import _fit
 
     def nan_refine(model, spec, args, solver, max_steps, rtol, atol):
         return eqx.tree_at(lambda m: m.a, model, jnp.asarray(np.nan)), float("nan"), 7, False

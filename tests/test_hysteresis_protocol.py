@@ -1,4 +1,4 @@
-"""The hysteresis protocol (`smafl_jax._hysteresis`): every registered model, parametrised from the registry.
+"""The hysteresis protocol (`smafl_jax.models._hysteresis`): every registered model, parametrised from the registry.
 
 Each concrete class (EUPI, Preisach, and any later one) must keep the contract the consumers rely on:
 features @ weights == evaluation, step-scan == whole-record evaluation, weights round trip, fixed fields,
@@ -17,12 +17,20 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax._bayes import Posterior
-from smafl_jax._control import PID, ClosedLoop, IICompensator, plant_init, plant_step, simulate_closed_loop, sine_reference
-from smafl_jax._effects import EFFECTS, ExtendedModel
-from smafl_jax._hysteresis import AbstractHysteresis, hysteresis_models, hysteresis_of
-from smafl_jax._preisach import Preisach, relay_loop
+from smafl_jax.bayes._bayes import Posterior
 from smafl_jax.cli import main
+from smafl_jax.control._control import (
+    PID,
+    ClosedLoop,
+    IICompensator,
+    plant_init,
+    plant_step,
+    simulate_closed_loop,
+    sine_reference,
+)
+from smafl_jax.effects import EFFECTS, ExtendedModel
+from smafl_jax.models._hysteresis import AbstractHysteresis, hysteresis_models, hysteresis_of
+from smafl_jax.models._preisach import Preisach, relay_loop
 
 MODELS = hysteresis_models()
 IDS = [cls.__name__ for cls in MODELS]

@@ -1,4 +1,4 @@
-"""Several records in one fit (smafl_jax._multi_record, `smafl fit A B`), loading through data.load, --resample,
+"""Several records in one fit (smafl_jax.identify._multi_record, `smafl fit A B`), loading through data.load, --resample,
 baselines and data checks in fit reports, and the input-range warning of `smafl simulate`."""
 
 import json
@@ -167,7 +167,7 @@ def test_input_range_check_counts():
 
 
 def test_loro_verdict_needs_most_records_not_just_the_mean():
-    from smafl_jax._multi_record import _dominant_fold, loro_sentences
+    from smafl_jax.identify._multi_record import _dominant_fold, loro_sentences
 
     def fold(name, m, b):
         met = lambda r: {"rmse": r, "e_r_percent": 10 * r, "max_abs_error": 2 * r, "mean_abs_error": r, "n_samples": 10}

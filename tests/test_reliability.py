@@ -232,7 +232,7 @@ def test_oversized_csv_field_is_a_data_error(tmp_path):
 def test_sample_refuses_a_model_it_cannot_condition():
     # a diagnose ExtendedModel is sampled now (its effect parameters with the rest); an object without
     # simulate(u, dt) is refused with a message naming it
-    from smafl_jax._bayes import check_model_supported
+    from smafl_jax.bayes._bayes import check_model_supported
 
     check_model_supported(sj.ExtendedModel(sj.load_model(TRUTH), ()))
     with pytest.raises(sj.UserInputError, match="no simulate"):
@@ -243,8 +243,8 @@ def test_sample_refuses_a_model_it_cannot_condition():
 
 
 def test_chunked_sweep_equals_one_call_and_reports_progress():
-    from smafl_jax._control import PID, ClosedLoop, sine_reference
-    from smafl_jax._sweep import sweep
+    from smafl_jax.control._control import PID, ClosedLoop, sine_reference
+    from smafl_jax.control._sweep import sweep
 
     model = sj.load_model(TRUTH)
     import jax.numpy as jnp
@@ -286,7 +286,7 @@ def _joule_posterior():
 def test_acceptance_fraction_is_counted_from_the_chain_and_survives_a_resume(tmp_path):
     import h5py
 
-    from smafl_jax._bayes import _hdf_backend
+    from smafl_jax.bayes._bayes import _hdf_backend
 
     post = _joule_posterior()
     ref = sj.run_sampler(post, 40, n_walkers=8, path=tmp_path / "ref.h5", seed=5, progress=False)
@@ -590,7 +590,7 @@ def test_long_phases_report_progress(tmp_path, monkeypatch, caplog):
     import logging
 
     from smafl_jax import _progress
-    from smafl_jax._preisach import cv_fit_preisach
+    from smafl_jax.models._preisach import cv_fit_preisach
 
     monkeypatch.setattr(_progress, "EVERY_S", 0.0)
     rng = np.random.default_rng(0)
@@ -614,7 +614,7 @@ def test_long_phases_report_progress(tmp_path, monkeypatch, caplog):
 def test_padded_calls_equal_unpadded_ones():
     import jax.numpy as jnp
 
-    from smafl_jax._padding import MIN_BUCKET, bucket_length, padded_call
+    from smafl_jax.models._padding import MIN_BUCKET, bucket_length, padded_call
 
     for n in (1, 37, MIN_BUCKET, MIN_BUCKET + 1, 1000, 4097, 100_000):
         b = bucket_length(n)
@@ -663,10 +663,10 @@ def _labels_with_units(fig):
 def test_report_figures_have_units_on_every_axis(tmp_path):
     import matplotlib.pyplot as plt
 
-    from smafl_jax import _plots_bayes as pb
-    from smafl_jax import _report
-    from smafl_jax._diagnose import make_split
-    from smafl_jax._reportdoc import axis_label
+    from smafl_jax.diagnosis._diagnose import make_split
+    from smafl_jax.report import _plots_bayes as pb
+    from smafl_jax.report import _report
+    from smafl_jax.report._reportdoc import axis_label
 
     assert axis_label("displacement_mm") == "displacement (mm)"
     assert axis_label("temperature_front_C") == "temperature front (°C)"

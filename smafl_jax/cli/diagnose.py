@@ -61,10 +61,10 @@ def add_parser(sub):
 
 
 def run(args):
-    from .._data import load_record
     from .._errors import UserInputError
     from .._io import prepare_out_dir
-    from .._report import write_diagnosis
+    from ..data._data import load_record
+    from ..report._report import write_diagnosis
 
     if args.max_candidates < 1:
         raise UserInputError(f"--max-candidates must be >= 1, got {args.max_candidates}")
@@ -77,7 +77,7 @@ def run(args):
     if args.n_folds < 2:
         raise UserInputError(f"--n-folds must be >= 2, got {args.n_folds}")
     rec = load_record(args.data, input=args.input, output=args.output)
-    from .._diagnose import check_record, diagnose
+    from ..diagnosis._diagnose import check_record, diagnose
 
     check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)

@@ -102,10 +102,10 @@ def add_parser(sub):
 
 def run(args):
     from .. import prepare_out_dir
-    from .._data import parse_resample
     from .._errors import UserInputError
-    from .._report_fit import fit_record, write_fit_outputs
     from ..data import load_records
+    from ..data._data import parse_resample
+    from ..report._report_fit import fit_record, write_fit_outputs
 
     if args.max_steps < 0:
         raise UserInputError(f"--max-steps must be >= 0, got {args.max_steps}")
@@ -190,7 +190,7 @@ def _print_extras(doc):
 def _run_records(args, records, grid):
     """Several records: one joint model, leave-one-record-out validation, outputs like a one-record fit."""
     from .. import prepare_out_dir
-    from .._multi_record import fit_records, write_records_outputs
+    from ..identify._multi_record import fit_records, write_records_outputs
 
     out = prepare_out_dir(args.out or f"fit_{records[0].name}_and_{len(records) - 1}_more")
     print(

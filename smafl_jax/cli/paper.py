@@ -24,7 +24,7 @@ def run(args):
     import sys
     from pathlib import Path
 
-    from .._paper import run_paper
+    from ..paper._paper import run_paper
 
     s = run_paper(args.out, quick=args.quick, datasets=args.datasets, real=args.real_data, seed=args.seed)
     out = Path(s["out"])

@@ -72,13 +72,6 @@ def add_parser(sub):
     return p
 
 
-def parse_calibrate(text: str) -> tuple[float | None, float]:
-    """``"START:END"`` (seconds; START may be empty = the record's start) -> ``(start, end)``."""
-    from ..workflows.simulate import parse_segment
-
-    return parse_segment(text, "--calibrate")
-
-
 def run(args):
     from ..workflows.simulate import simulate_record
 
@@ -132,7 +125,7 @@ def _pct(x: float) -> str:
 
 
 def input_range_check(u, fitted_range, column: str = "input", dt: float | None = None) -> dict:
-    """How far and how often ``u`` leaves ``fitted_range`` (see `smafl_jax._range.range_check`)."""
-    from .._range import range_check
+    """How far and how often ``u`` leaves ``fitted_range`` (see `smafl_jax.models._range.range_check`)."""
+    from ..models._range import range_check
 
     return range_check(u, fitted_range, column, dt=dt)

@@ -210,7 +210,7 @@ def _fmt(k) -> str:
 def branch_partition(labels, residue: int = 2) -> tuple[list, list]:
     """``(kept, held)`` branch labels: of the sorted distinct labels, positions ``i % 3 == residue`` (i != 0) are held.
 
-    The one branch rule of fit (`smafl_jax._split.split_masks`), diagnose and CV: positions, not label
+    The one branch rule of fit (`smafl_jax.identify._split.split_masks`), diagnose and CV: positions, not label
     values, so non-contiguous labels split like contiguous ones.
     """
     if residue not in range(BRANCH_EVERY):

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
-from .._constraints import positive
+from ..models._constraints import positive
 from .protocol import (
     AbstractFeatureEffect,
     AbstractInputEffect,

@@ -3,7 +3,7 @@
 `ExtendedModel(base, effects)` composes a base model (a `Cascade`, or a bare
 hysteresis model, `EUPI` or `Preisach`, for rate-free records and non-voltage
 inputs) with effect modules.  It reaches the hysteresis only through the
-`smafl_jax._hysteresis.AbstractHysteresis` protocol (``features`` on a
+`smafl_jax.models._hysteresis.AbstractHysteresis` protocol (``features`` on a
 transformed input, ``linear_weights``) and the effects only through the effect
 protocol (`smafl_jax.effects.protocol`): it applies the stages of `STAGES` in
 order, each effect through its stage's method, with no effect named here.  The
@@ -49,10 +49,10 @@ import jax
 import jax.numpy as jnp
 
 from .. import _config  # noqa: F401
-from .._cascade import Cascade
-from .._hysteresis import AbstractHysteresis, hysteresis_of
 from .._io import register_model
-from .._thermal import _safe_sqrt
+from ..models._cascade import Cascade
+from ..models._hysteresis import AbstractHysteresis, hysteresis_of
+from ..models._thermal import _safe_sqrt
 from .protocol import EFFECTS, AbstractEffect, effect_rank
 
 __all__ = ["ExtendedModel", "LoadBound"]

@@ -1,7 +1,7 @@
 """Effect protocol: what every catalogue effect declares about itself (diffrax-style abstract classes).
 
 An effect is an `equinox.Module` holding its parameters.  Its class declares everything the rest of the
-toolkit needs, so that `ExtendedModel` and the diagnosis (`smafl_jax._diagnose`) never switch on effect names:
+toolkit needs, so that `ExtendedModel` and the diagnosis (`smafl_jax.diagnosis._diagnose`) never switch on effect names:
 
 - ``name`` (catalogue name), ``needs`` (``"thermal"``: a `Cascade` base, ``"time"``: record dynamics,
   ``"load"``: a load column), ``physics`` and ``parameters`` (documentation, and the fields reported);
@@ -14,9 +14,9 @@ toolkit needs, so that `ExtendedModel` and the diagnosis (`smafl_jax._diagnose`)
   (fields never trained) and, for effects with linear parameters, the design columns or design map of
   the stage;
 - ``synthesise(rng, ctx)`` with its ``synthetic`` description: a random effect of a clearly visible
-  strength for synthetic records (`smafl_jax._diagnose.synthetic_effect_record`).
+  strength for synthetic records (`smafl_jax.diagnosis._diagnose.synthetic_effect_record`).
 
-``ctx`` is a plain dict describing the training data (`smafl_jax._diagnose._context`): ``dt``,
+``ctx`` is a plain dict describing the training data (`smafl_jax.diagnosis._diagnose._context`): ``dt``,
 ``duration`` (longest training stretch, s), ``y_lo``, ``y_mid``, ``y_range`` and, with a load column,
 ``load_ref``, ``load_scale``.
 

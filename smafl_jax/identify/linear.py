@@ -108,7 +108,7 @@ def solve(
     ``"lower"`` (forward substitution on ``R'``) or ``"transpose"`` (LAPACK's transposed solve on ``R``):
     the same mathematics, rounded differently in the last bit; ``jitter_of``: ``"mean"`` (jitter x the
     mean diagonal, independent of the number of columns) or ``"trace"`` (jitter x the trace).
-    `smafl_jax._fit` uses ``rhs="transpose", jitter_of="trace"`` so that its fits reproduce their
+    `smafl_jax.identify._fit` uses ``rhs="transpose", jitter_of="trace"`` so that its fits reproduce their
     earlier numbers exactly.
     """
     A = np.asarray(A, dtype=np.float64)

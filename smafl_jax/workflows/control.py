@@ -2,7 +2,7 @@
 
 `run_control` loads the identified model (the I-I compensator's) and the plant
 model, builds the reference ('sine', 'step', a CSV or an array), runs the PID /
-composite PID loop (`smafl_jax._control`), checks the controller's drive against
+composite PID loop (`smafl_jax.control._control`), checks the controller's drive against
 the range the plant model was fitted on, and writes, atomically, to ``out``:
 ``trajectory.csv``, ``tracking.png``, ``error.png`` and ``metrics.json``.
 `build_loop` (the loop and its settings, every option checked) is shared with
@@ -22,7 +22,7 @@ import numpy as np
 from .._errors import UserInputError
 
 if TYPE_CHECKING:
-    from .._control import ClosedLoop
+    from ..control._control import ClosedLoop
 
 PathLike = str | os.PathLike
 
@@ -121,7 +121,7 @@ def _read_reference_csv(path):
 def load_reference(spec, dt: float, duration: float, option_names: Mapping[str, str] | None = None) -> np.ndarray:
     """Reference samples (mm) on the ``dt`` grid from 'sine', 'step', a CSV file (time_s + one column, interpolated
     onto the grid) or an array of samples already on it."""
-    from .._control import sine_reference, step_reference
+    from ..control._control import sine_reference, step_reference
 
     o = option_namer(option_names)
     if not isinstance(spec, (str, os.PathLike)):
@@ -200,7 +200,7 @@ def build_loop(
     import jax
     import jax.numpy as jnp
 
-    from .._control import PID, ClosedLoop, IICompensator
+    from ..control._control import PID, ClosedLoop, IICompensator
 
     o = option_namer(option_names)
     values = {"dt": dt, "duration": duration, "umax": umax, "tf": tf, "noise": noise, "quantum": quantum, "K": K}
@@ -263,7 +263,7 @@ def drive_range_checks(plant, settings: dict, u, dt: float) -> tuple[list[dict],
 
     Warnings are logged (WARNING), notes (a model without a fitted range) logged at INFO.
     """
-    from .._range import model_range_checks
+    from ..models._range import model_range_checks
 
     fitted = settings.get("plant_fitted_ranges") or {}
     checks = model_range_checks(plant, fitted, np.asarray(u), dt, "drive u")
@@ -344,8 +344,8 @@ def run_control(
     unstable loop (non-finite metrics) is a `UserInputError`.  An ``out`` folder holding earlier results
     is reused: files of the same name are replaced (logged as a note), others are left alone.
     """
-    from .._control import simulate_closed_loop
     from .._io import atomic_savefig, atomic_write_csv, atomic_write_json
+    from ..control._control import simulate_closed_loop
 
     loop, settings = build_loop(
         model,

@@ -25,8 +25,8 @@ import numpy as np
 from .._errors import UserInputError
 
 if TYPE_CHECKING:
-    from .._bayes import Posterior, Prior, SampleRun
-    from .._data import Record
+    from ..bayes._bayes import Posterior, Prior, SampleRun
+    from ..data._data import Record
 
 PathLike = str | os.PathLike
 
@@ -103,7 +103,7 @@ def _load_fit(fit):
 
 
 def _load(record, *, input=None, output=None):
-    from .._data import Record, load_record
+    from ..data._data import Record, load_record
 
     if isinstance(record, Record):
         return record  # its columns are chosen already
@@ -159,10 +159,10 @@ def sample_posterior(
     refused (`UserInputError`) unless ``restart``.  ``progress``: emcee's progress bar on stderr.
     ``option_names``: how error messages name the settings (the command line passes its flags).
     """
-    from .. import _bayes as B
     from .._io import atomic_write_csv, atomic_write_json, atomic_write_text, prepare_out_dir
-    from .._plots_bayes import corner_figure, predictive_loop_figure, predictive_time_figure, trace_figure
-    from .._reportdoc import unit_of
+    from ..bayes import _bayes as B
+    from ..report._plots_bayes import corner_figure, predictive_loop_figure, predictive_time_figure, trace_figure
+    from ..report._reportdoc import unit_of
 
     o = {**_OPTION_NAMES, **(option_names or {})}
     if steps < 10:
@@ -182,7 +182,7 @@ def sample_posterior(
     if linear != "auto" and linear not in B.LINEAR_MODES:
         raise UserInputError(f"{o['linear']} must be 'auto' or one of {B.LINEAR_MODES}, got {linear!r}")
 
-    from .._data import Record
+    from ..data._data import Record
 
     if isinstance(record, Record) and (input or output):
         raise UserInputError("input / output name columns of a CSV; a Record given as the data has its columns already")

@@ -24,7 +24,7 @@ from .._errors import UserInputError
 from .control import option_namer
 
 if TYPE_CHECKING:
-    from .._data import Record
+    from ..data._data import Record
 
 PathLike = str | os.PathLike
 
@@ -128,9 +128,9 @@ def simulate_record(
     after the segment.  ``metrics_file`` needs a measured column.  An existing ``out`` file is replaced
     (logged as a note).  ``option_names``: how error messages name the settings.
     """
-    from .._data import Record, load_record, parse_resample
     from .._io import atomic_write_csv, atomic_write_json, check_writable_file, load_model_file
-    from .._simulate import simulate
+    from ..data._data import Record, load_record, parse_resample
+    from ..models._simulate import simulate
 
     o = option_namer(option_names)
     warnings: list[str] = []
@@ -151,7 +151,7 @@ def simulate_record(
         raise UserInputError(f"{o('calibrate_fit')} needs {o('calibrate')} START:END")
     fit_names = None
     if segment is not None:
-        from .._recalibrate import _check_fit_names
+        from ..identify._recalibrate import _check_fit_names
 
         names = calibrate_fit if calibrate_fit is not None else CALIBRATION_DEFAULT
         if isinstance(names, str):
@@ -167,7 +167,7 @@ def simulate_record(
     else:
         doc = {}
     if method is not None:
-        from .._operators import model_with_method
+        from ..models._operators import model_with_method
 
         try:
             model = model_with_method(model, method)
@@ -194,7 +194,7 @@ def simulate_record(
     cols_in = _columns(rec)
     measured_col = measured or data_info.get("output_column")
     if initial_state != "fit":
-        from .._initial_state import with_initial_state
+        from ..models._initial_state import with_initial_state
 
         y_meas = np.asarray(cols_in[measured_col], dtype=np.float64) if measured_col in cols_in else None
         model, start = with_initial_state(model, initial_state, rec.u, y_meas, rec.dt)
@@ -205,7 +205,7 @@ def simulate_record(
     calibration = None
     raw_model = model
     if segment is not None:
-        from .._recalibrate import recalibrate
+        from ..identify._recalibrate import recalibrate
 
         if measured_col not in cols_in:
             raise UserInputError(
@@ -237,7 +237,7 @@ def simulate_record(
                 f"calibration: {', '.join(calibration['at_bound'])} ended at its bound {calibration['bounds']}: "
                 f"the segment does not determine it; use a longer segment or {o('calibrate_fit')} output_offset"
             )
-    from .._range import model_range_checks
+    from ..models._range import model_range_checks
 
     if calibration is None:
         checks = model_range_checks(model, data_info, rec.u, rec.dt, rec.input_name)
@@ -266,13 +266,13 @@ def simulate_record(
             )
         cols[raw_name] = y_raw
     if measured_col in cols_in and measured_col != out_name:
-        from .._metrics import metrics
+        from ..identify._metrics import metrics
 
         ym = np.asarray(cols_in[measured_col], dtype=np.float64)
         if calibration is None:
             scores = {"measured_column": measured_col, **metrics(ym, y)}
         elif calibration["scored_from_sample"] < len(rec):
-            from .._recalibrate import after_segment_metrics
+            from ..identify._recalibrate import after_segment_metrics
 
             after = after_segment_metrics(ym, y_raw, y, calibration["scored_from_sample"])
             scores = {

@@ -1,7 +1,7 @@
 """A closed-loop parameter sweep as one library call (the workflow behind ``smafl sweep``).
 
 `run_sweep` builds the loop as `run_control` does (`build_loop`), runs every
-combination of two swept parameters (`smafl_jax._sweep.sweep`: vmap, chunked,
+combination of two swept parameters (`smafl_jax.control._sweep.sweep`: vmap, chunked,
 sharded over devices), counts the configurations whose drive leaves the range
 the plant model was fitted on, ranks them by e_mean and writes, atomically, to
 ``out``: ``sweep.csv`` (every configuration), ``best.csv`` (the best ``top``),
@@ -216,7 +216,7 @@ def run_sweep(
     import jax
 
     from .._io import atomic_write_bytes, atomic_write_csv, atomic_write_json
-    from .._sweep import sweep
+    from ..control._sweep import sweep
 
     o = option_namer(option_names)
     (xn, xv), (yn, yv) = parse_axis(x), parse_axis(y)

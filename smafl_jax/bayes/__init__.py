@@ -1,0 +1,33 @@
+"""Bayesian uncertainty of an identified model: priors, log-posterior, vectorised emcee runs, diagnostics."""
+
+from ._bayes import (
+    ChainTooShortWarning,
+    Posterior,
+    Prior,
+    SampleRun,
+    check_model_supported,
+    default_priors,
+    diagnostics,
+    linear_modes,
+    load_priors,
+    load_run,
+    resolve_walkers,
+    run_sampler,
+    summarize,
+)
+
+__all__ = [
+    "Prior",
+    "Posterior",
+    "SampleRun",
+    "ChainTooShortWarning",
+    "default_priors",
+    "check_model_supported",
+    "linear_modes",
+    "resolve_walkers",
+    "load_priors",
+    "run_sampler",
+    "load_run",
+    "diagnostics",
+    "summarize",
+]

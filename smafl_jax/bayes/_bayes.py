@@ -1,0 +1,948 @@
+"""Bayesian uncertainty for the identified models: log-posterior, vectorised emcee, diagnostics.
+
+The sampled vector is the ravelled PyTree ``(trainable model leaves, noise)``
+in *unconstrained* coordinates (positive fields through softplus, see
+`smafl_jax.constrain`), so the density includes `log_jacobian`.  Priors are
+stated on the physical values, elementwise, and can be overridden from JSON.
+
+Linear gains (``linear=``):
+
+The trainable leaves come from `smafl_jax.default_trainable`, i.e. from the hysteresis
+protocol (`smafl_jax.models._hysteresis`): a hysteresis model's grids and spans (EUPI thresholds,
+Preisach levels) are never sampled; its weights are its `linear_fields`.
+
+- ``"sample"``: every trainable leaf (thermal k1 and all hysteresis weights) is sampled.
+  Exact for the model as written (gains >= 0 respected), but the dimension is
+  ~30 for the default EUPI and the ensemble sampler mixes slowly.
+- ``"marginalise"`` (recommended when the hysteresis has many weights): only the
+  nonlinear parameters (k1, noise scale, grids if trained) are sampled; the
+  gains get a Gaussian prior ``N(0, tau^2)`` and are integrated out in closed
+  form (Gaussian noise only).  Exact for *unbounded* gains; the positivity of
+  the play-operator gains is dropped, so use it when the data pin the gains
+  down (the usual case: thousands of samples, tens of gains).  Gains for the
+  predictive draws come from their exact conditional Gaussian.
+- ``"profile"``: gains replaced by their ridge least-squares estimate at each
+  nonlinear point.  Cheapest, but ignores the gains' uncertainty, so intervals
+  on k1 come out too narrow when the gains are poorly determined.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import shutil
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.flatten_util import ravel_pytree
+
+from .. import _config  # noqa: F401
+from .._errors import UserInputError
+from ..identify._fit import as_fit_data, default_trainable
+from ..models._cascade import Cascade
+from ..models._constraints import constrain, log_jacobian, positive, unconstrain
+from ..models._hysteresis import column_weight_scales, hysteresis_of
+from ..models._simulate import simulate
+from ..models._thermal import JouleThermal
+
+__all__ = [
+    "Prior",
+    "Posterior",
+    "SampleRun",
+    "ChainTooShortWarning",
+    "default_priors",
+    "check_model_supported",
+    "linear_modes",
+    "resolve_walkers",
+    "load_priors",
+    "run_sampler",
+    "load_run",
+    "diagnostics",
+    "summarize",
+]
+
+NOISE_MODELS = ("gaussian", "student-t")
+LINEAR_MODES = ("sample", "marginalise", "profile")
+_DISTS = {
+    "normal": ("loc", "scale"),
+    "lognormal": ("loc", "scale"),
+    "halfnormal": ("scale",),
+    "uniform": ("low", "high"),
+    "flat": (),
+}
+_LOG2PI = math.log(2.0 * math.pi)
+
+
+class ChainTooShortWarning(UserWarning):
+    """The chain is shorter than ~50 autocorrelation times: its error bars are not reliable."""
+
+
+# -- priors -------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Prior:
+    """Elementwise prior on a physical parameter value.
+
+    ``normal(loc, scale)``, ``lognormal(loc, scale)`` (of ``log x``, x > 0),
+    ``halfnormal(scale)`` (x > 0), ``uniform(low, high)``, ``flat`` (improper).
+    """
+
+    dist: str
+    loc: float = 0.0
+    scale: float = 1.0
+    low: float = -math.inf
+    high: float = math.inf
+
+    def __post_init__(self):
+        if self.dist not in _DISTS:
+            raise UserInputError(f"unknown prior distribution {self.dist!r}; choose one of {sorted(_DISTS)}")
+        if "scale" in _DISTS[self.dist] and not (np.all(np.asarray(self.scale) > 0) and np.all(np.isfinite(self.scale))):
+            raise UserInputError(f"{self.dist} prior needs a finite scale > 0, got {self.scale}")
+        if self.dist == "uniform" and not np.all(np.asarray(self.low) < np.asarray(self.high)):
+            raise UserInputError(f"uniform prior needs low < high, got [{self.low}, {self.high}]")
+
+    def logpdf(self, x):
+        """Summed log density of the elements of ``x`` (normalised, except ``flat``)."""
+        x = jnp.asarray(x)
+        d = self.dist
+        if d == "flat":
+            return jnp.asarray(0.0)
+        if d == "normal":
+            z = (x - self.loc) / self.scale
+            return jnp.sum(-0.5 * z * z - jnp.log(self.scale) - 0.5 * _LOG2PI + 0.0 * x)
+        if d == "lognormal":
+            lx = jnp.log(x)
+            z = (lx - self.loc) / self.scale
+            return jnp.sum(-0.5 * z * z - jnp.log(self.scale) - 0.5 * _LOG2PI - lx)
+        if d == "halfnormal":
+            z = x / self.scale
+            return jnp.sum(jnp.where(x >= 0, -0.5 * z * z - jnp.log(self.scale) + 0.5 * math.log(2.0 / math.pi), -jnp.inf))
+        # uniform
+        inside = (x >= self.low) & (x <= self.high)
+        return jnp.sum(jnp.where(inside, -jnp.log(jnp.asarray(self.high) - self.low) + 0.0 * x, -jnp.inf))
+
+    def to_dict(self):
+        return {"dist": self.dist, **{k: _jsonable(getattr(self, k)) for k in _DISTS[self.dist]}}
+
+    @classmethod
+    def from_dict(cls, d, where="prior"):
+        if not isinstance(d, dict) or "dist" not in d:
+            raise UserInputError(
+                f"{where}: expected an object with a 'dist' entry, e.g. {{'dist': 'lognormal', 'loc': -3, 'scale': 1}}"
+            )
+        dist = d["dist"]
+        if dist not in _DISTS:
+            raise UserInputError(f"{where}: unknown distribution {dist!r}; choose one of {sorted(_DISTS)}")
+        extra = set(d) - {"dist", *_DISTS[dist]}
+        if extra:
+            raise UserInputError(f"{where}: {dist} takes {list(_DISTS[dist])}, not {sorted(extra)}")
+        missing = [k for k in _DISTS[dist] if k not in d]
+        if missing:
+            raise UserInputError(f"{where}: {dist} prior needs {missing}")
+        kw = {}
+        for k in _DISTS[dist]:
+            try:
+                val = float(d[k])
+            except (TypeError, ValueError):
+                raise UserInputError(f"{where}.{k}: expected a number, got {d[k]!r}") from None
+            kw[k] = val
+        return cls(dist, **kw)
+
+
+def _jsonable(x):
+    return float(x) if np.ndim(x) == 0 else np.asarray(x).tolist()
+
+
+def load_priors(path):
+    """``{parameter name: Prior}`` from a JSON file ``{"thermal.k1": {"dist": ..., ...}, ...}``."""
+    from .._io import read_json_file
+
+    path = Path(path)
+    doc = read_json_file(path, "priors file")
+    doc = doc.get("priors", doc)
+    return {str(k): Prior.from_dict(v, where=f"{path}: {k}") for k, v in doc.items()}
+
+
+def _data_scale(data):
+    """(output range, max |input|) of the records; `UserInputError` when their squares overflow float64.
+
+    The Gaussian / Student-t likelihoods sum squared residuals, so values whose
+    squares are not finite (magnitudes beyond ~1e150) cannot be sampled: the
+    units must be rescaled.
+    """
+    ys = np.concatenate([np.asarray(y, dtype=np.float64) for _, y, _ in data])
+    us = np.concatenate([np.asarray(u, dtype=np.float64) for u, _, _ in data])
+    with np.errstate(over="ignore", invalid="ignore"):
+        for what, x in (("output", ys), ("input", us)):
+            if not np.isfinite(np.sum(np.square(x))):
+                raise UserInputError(
+                    f"the {what} values (up to {float(np.max(np.abs(x))):.3g}) are too large: their squares overflow "
+                    "float64; rescale the column to other units"
+                )
+        yr = float(np.ptp(ys)) or float(np.max(np.abs(ys))) or 1.0
+    return yr, float(np.max(np.abs(us))) or 1.0
+
+
+def default_priors(names, data):
+    """Weakly informative priors for the parameter leaves ``names``, scaled by the data.
+
+    k1: lognormal around the paper's 0.05 1/s, sd 2 in log (time constants ~0.4 s..1000 s
+    at 95 %); k2: lognormal around the value that maps ``max U^2`` to the output range, sd 3;
+    hysteresis weights that are >= 0 (EUPI gain, v, w; Preisach relay weights w): half-normal with
+    scale 2x the output range; polynomial, offset and other free weights: normal(0, 10x range);
+    thresholds and tilts (if trained): lognormal around their grid scale; fitted operator memory
+    logits: normal(0, 4); noise scale: half-normal
+    with the output's range as scale.  Names are matched on their last two parts, so a thermal
+    ``k1`` nested in an extended model (``base.thermal.k1``) gets the k1 prior.
+    """
+    yr, umax = _data_scale(data)
+    table = {
+        "thermal.k1": Prior("lognormal", math.log(0.05), 2.0),
+        "k1": Prior("lognormal", math.log(0.05), 2.0),
+        # in log space: yr / umax^2 can over- or underflow for extreme units
+        "thermal.k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
+        "k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
+        "noise.sigma": Prior("halfnormal", scale=yr),
+    }
+    out = {}
+    for name in names:
+        leaf = name.split(".")[-1]
+        tail = ".".join(name.split(".")[-2:])
+        if name in table:
+            out[name] = table[name]
+        elif tail in table:
+            out[name] = table[tail]
+        elif leaf in ("gain", "v", "w"):
+            out[name] = Prior("halfnormal", scale=2.0 * yr)
+        elif leaf in ("poly", "offset"):
+            out[name] = Prior("normal", 0.0, 10.0 * yr)
+        elif leaf in ("r_sym", "r_asym"):
+            out[name] = Prior("lognormal", math.log(0.25), 1.0)
+        elif leaf == "alpha":
+            out[name] = Prior("lognormal", 0.0, 1.0)
+        elif leaf == "memory":  # logit of a fitted operator start (EUPI init="fitted"): keeps walkers off +-inf
+            out[name] = Prior("normal", 0.0, 4.0)
+        else:
+            out[name] = Prior("flat")
+    return out
+
+
+# -- posterior ----------------------------------------------------------------
+
+
+class _Noise(eqx.Module):
+    """Observation noise scale (one for all records)."""
+
+    sigma: jnp.ndarray = positive()
+
+
+def _leaf_name(path):
+    name = jax.tree_util.keystr(path)
+    # params are (model_part, noise): strip the tuple index, prefix the noise leaf
+    if name.startswith("[0]"):
+        name = name[3:]
+    elif name.startswith("[1]"):
+        name = "noise" + name[3:]
+    return name.lstrip(".")
+
+
+def _element_names(name, shape):
+    if shape == ():
+        return [name]
+    return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
+
+
+def _weight_prior_scales(model, names):
+    """``{leaf name: relative scale}`` for the hysteresis weight leaves whose scale is not 1 (see `weight_scales`)."""
+    h = hysteresis_of(model)
+    scales = {f: s for f, s in (h.weight_scales() if h is not None else {}).items() if s != 1.0}
+    if not scales:
+        return {}
+    marks = {f: object() for f in scales}  # tag the fields, then read their paths (= the sampler's leaf names)
+    tagged = eqx.tree_at(lambda m: [getattr(m.hysteresis, f) for f in marks], model, list(marks.values()))
+    where = {id(leaf): jax.tree_util.keystr(path).lstrip(".") for path, leaf in jax.tree_util.tree_flatten_with_path(tagged)[0]}
+    out = {where[id(mark)]: scales[f] for f, mark in marks.items()}
+    return {n: s for n, s in out.items() if n in names}
+
+
+def _ridge_lstsq(A, y, ridge):
+    """``argmin |A w - y|^2 + |ridge * w|^2`` by SVD (stays finite for duplicate operator columns)."""
+    Aa = jnp.concatenate([A, jnp.diag(ridge)], axis=0)
+    ya = jnp.concatenate([y, jnp.zeros_like(ridge)])
+    return jnp.linalg.lstsq(Aa, ya)[0]
+
+
+def check_model_supported(model, where="model"):
+    """`UserInputError` for models the posterior cannot handle: anything without a ``simulate(u, dt)``.
+
+    Every saved model qualifies: a hysteresis model (EUPI, Preisach), a cascade, the Joule lag and a
+    diagnose `ExtendedModel` (its effect parameters are sampled with the rest).
+    """
+    if not callable(getattr(model, "simulate", None)):
+        raise UserInputError(f"{where}: holds a {type(model).__name__}, which has no simulate(u, dt) to condition on data")
+
+
+def linear_modes(model):
+    """The ``linear=`` modes `Posterior` accepts for ``model``: all three when its output is linear in
+    its hysteresis weights (see `smafl_jax.models._hysteresis`), else only ``"sample"``."""
+    if hysteresis_of(model) is not None and getattr(model, "linear_in_weights", False):
+        return LINEAR_MODES
+    return ("sample",)
+
+
+def resolve_walkers(ndim, n_walkers=None):
+    """Number of emcee walkers: default ``max(32, 2 ndim + 2)``, rounded up to even; at least ``2 ndim``."""
+    if n_walkers is None:
+        n_walkers = max(32, 2 * ndim + 2)
+    n_walkers = int(n_walkers) + int(n_walkers) % 2
+    if n_walkers < 2 * ndim:
+        raise UserInputError(f"need at least 2 x {ndim} = {2 * ndim} walkers for {ndim} parameters, got {n_walkers}")
+    return n_walkers
+
+
+class Posterior:
+    """Log-posterior of a model's trainable parameters and the noise scale, in unconstrained coordinates.
+
+    ``data``: anything `smafl_jax.as_fit_data` accepts.  ``noise``: ``"gaussian"`` or
+    ``"student-t"`` (``nu`` degrees of freedom, fixed).  ``sigma``: starting noise scale
+    (default: RMS residual of ``model``).  ``priors``: ``{name: Prior}`` overriding the
+    defaults (names as in `names_leaf`).  ``linear``: see the module docstring.
+    ``gain_scale``: prior sd of the marginalised/profiled gains (default 10x output range).
+    ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).
+    """
+
+    def __init__(
+        self,
+        model,
+        data,
+        dt=None,
+        *,
+        trainable=None,
+        noise="gaussian",
+        nu=4.0,
+        sigma=None,
+        priors=None,
+        linear="sample",
+        gain_scale=None,
+        prior_only=False,
+    ):
+        if noise not in NOISE_MODELS:
+            raise UserInputError(f"noise model must be one of {NOISE_MODELS}, got {noise!r}")
+        if linear not in LINEAR_MODES:
+            raise UserInputError(f"linear must be one of {LINEAR_MODES}, got {linear!r}")
+        if not (float(nu) > 0):
+            raise UserInputError(f"Student-t degrees of freedom must be > 0, got {nu}")
+        if gain_scale is not None and not (math.isfinite(float(gain_scale)) and float(gain_scale) > 0):
+            raise UserInputError(f"gain_scale (prior sd of the gains) must be > 0, got {gain_scale}")
+        check_model_supported(model)
+        self.data = as_fit_data(data, dt)
+        self.noise, self.nu, self.linear, self.prior_only = noise, float(nu), linear, bool(prior_only)
+        spec = default_trainable(model) if trainable is None else trainable
+        if linear != "sample":
+            if linear not in linear_modes(model):
+                raise UserInputError(
+                    f"linear={linear!r} needs a model whose output is linear in its hysteresis weights (an EUPI, a "
+                    "Preisach, a cascade of either), got "
+                    f"{type(model).__name__}{' with output-side effects' if hysteresis_of(model) is not None else ''}"
+                )
+            if linear == "marginalise" and noise != "gaussian":
+                raise UserInputError(
+                    "marginalising the gains is exact only for Gaussian noise; use noise='gaussian' or linear='profile'"
+                )
+            fields = hysteresis_of(model).linear_fields()
+            spec = eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fields], spec, [False] * len(fields))
+        yr, _ = _data_scale(self.data)
+        self.gain_scale = float(10.0 * yr if gain_scale is None else gain_scale)
+        self.model = model
+        self.spec = spec
+        if sigma is None:
+            res = np.concatenate([np.asarray(simulate(model, u, d)) - y for u, y, d in self.data])
+            sigma = float(np.sqrt(np.mean(res**2))) if np.all(np.isfinite(res)) else 0.1 * yr
+            sigma = max(sigma, 1e-6 * yr)
+        raw = unconstrain(model)
+        raw_train, static = eqx.partition(raw, spec)
+        # floored zeros (e.g. NNLS gains) sit at softplus^-1(1e-10) ~ -23, far in the tail
+        # of any prior; start them where the density has mass.
+        raw_train = jax.tree_util.tree_map(lambda x: jnp.maximum(x, -7.0), raw_train)
+        params = (raw_train, unconstrain(_Noise(jnp.asarray(float(sigma)))))
+        self.theta0 = np.asarray(ravel_pytree(params)[0])
+        leaves, treedef = jax.tree_util.tree_flatten_with_path(params)
+        self.names_leaf = [_leaf_name(p) for p, _ in leaves]
+        self.shapes_leaf = [tuple(np.shape(x)) for _, x in leaves]
+        self.names = [n for name, s in zip(self.names_leaf, self.shapes_leaf) for n in _element_names(name, s)]
+        self.ndim = len(self.names)
+        user = dict(priors or {})
+        unknown = sorted(set(user) - set(self.names_leaf))
+        if unknown:
+            raise UserInputError(f"priors given for unknown parameters {unknown}; sampled parameters are {self.names_leaf}")
+        pri = default_priors(self.names_leaf, self.data)
+        for name, scale in _weight_prior_scales(model, self.names_leaf).items():  # e.g. Preisach relays: 1/sqrt(n)
+            if pri[name].dist in ("halfnormal", "normal"):
+                pri[name] = dataclasses.replace(pri[name], scale=pri[name].scale * scale)
+        pri.update(user)
+        self.priors = pri
+        self._d = _Density(
+            static=static,
+            args=tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d)) for u, y, d in self.data),
+            # prior sd of each marginalised / profiled weight: gain_scale x the hysteresis' relative scale of that column
+            gain_scale=jnp.asarray(
+                self.gain_scale * column_weight_scales(hysteresis_of(model)) if linear != "sample" else self.gain_scale
+            ),
+            treedef=jax.tree_util.tree_structure(params),
+            shapes=tuple(self.shapes_leaf),
+            priors=tuple(pri[n] for n in self.names_leaf),
+            noise=noise,
+            nu=float(nu),
+            linear=linear,
+            prior_only=bool(prior_only),
+        )
+        if linear != "sample" and not jax.tree_util.tree_leaves(raw_train):
+            self._d = dataclasses.replace(self._d, design=_fixed_design(self._d, model))
+
+    @property
+    def n_traces(self):
+        """How many times the vectorised log-density has been traced (process-wide; for tests)."""
+        return _TRACES[0]
+
+    def unpack(self, theta):
+        """``(physical model, sigma)`` at the unconstrained vector ``theta`` (gains as in the template when not sampled)."""
+        return self._d.unpack(jnp.asarray(theta))
+
+    def log_prob(self, theta):
+        """Log-posterior (up to a constant) at one unconstrained vector; -inf where undefined."""
+        return self._d.log_prob(theta)
+
+    def _loglik(self, model, sigma):
+        return self._d._loglik(model, sigma)
+
+    def __call__(self, thetas):
+        """Vectorised log-posterior ``(n_walkers, ndim) -> (n_walkers,)`` for emcee (``vectorize=True``)."""
+        thetas = np.asarray(thetas, dtype=np.float64)
+        if thetas.ndim != 2 or thetas.shape[1] != self.ndim:
+            raise ValueError(f"expected thetas of shape (n, {self.ndim}), got {thetas.shape}")
+        return np.asarray(_batch_log_prob(self._d, jnp.asarray(thetas)))
+
+    def physical(self, thetas):
+        """Physical (constrained) values ``(n, ndim)`` in the order of `names`."""
+        return np.asarray(_batch_physical(self._d, jnp.asarray(thetas, dtype=jnp.float64)))
+
+    def initial_ball(self, n_walkers, rng, scale=1e-3):
+        """Walkers in a small ball around the starting point (the fit), all with finite density."""
+        theta0 = np.asarray(self.theta0, dtype=np.float64)
+        width = scale * np.maximum(np.abs(theta0), 1.0)
+        pos = theta0 + width * rng.standard_normal((n_walkers, self.ndim))
+        lp = self(pos)
+        for _ in range(50):
+            bad = ~np.isfinite(lp)
+            if not bad.any():
+                return pos
+            pos[bad] = theta0 + 0.1 * width * rng.standard_normal((int(bad.sum()), self.ndim))
+            lp = self(pos)
+        raise UserInputError("the log-posterior is not finite around the starting model; check the fit and the priors")
+
+    def predict(self, thetas, u, dt, rng):
+        """Posterior-predictive draws on input ``u``: ``(mean function (S, T), with noise (S, T))``.
+
+        With marginalised gains each draw takes gains from their exact conditional
+        Gaussian given the sampled nonlinear parameters; with profiled gains, their estimate.
+        """
+        thetas = jnp.asarray(thetas, dtype=jnp.float64)
+        keys = jax.random.split(jax.random.PRNGKey(int(rng.integers(2**31))), thetas.shape[0])
+        f, yrep = _batch_predict(self._d, thetas, keys, jnp.asarray(u, dtype=jnp.float64), jnp.asarray(dt, dtype=jnp.float64))
+        return np.asarray(f), np.asarray(yrep)
+
+
+class _Density(eqx.Module):
+    """The log-density as a PyTree (data and fixed parameters are leaves, settings static),
+    so the jitted functions below compile once per model structure and data shape, not per instance."""
+
+    static: object
+    args: tuple
+    gain_scale: jnp.ndarray
+    treedef: object = eqx.field(static=True)
+    shapes: tuple = eqx.field(static=True)
+    priors: tuple = eqx.field(static=True)
+    noise: str = eqx.field(static=True)
+    nu: float = eqx.field(static=True)
+    linear: str = eqx.field(static=True)
+    prior_only: bool = eqx.field(static=True)
+    design: tuple | None = None  # `_fixed_design`: when only the noise scale is sampled
+
+    def unravel(self, theta):
+        parts, i = [], 0
+        for shape in self.shapes:
+            size = int(np.prod(shape, dtype=int))
+            parts.append(theta[i : i + size].reshape(shape))
+            i += size
+        return jax.tree_util.tree_unflatten(self.treedef, parts)
+
+    def unpack(self, theta):
+        raw_train, raw_noise = self.unravel(theta)
+        return constrain(eqx.combine(raw_train, self.static)), constrain(raw_noise).sigma
+
+    def physical(self, theta):
+        raw_train, raw_noise = self.unravel(theta)
+        return ravel_pytree((constrain(raw_train), constrain(raw_noise)))[0]
+
+    def _loglik_resid(self, r, sigma):
+        n = r.shape[0]
+        if self.noise == "gaussian":
+            return -0.5 * jnp.sum((r / sigma) ** 2) - n * jnp.log(sigma) - 0.5 * n * _LOG2PI
+        nu = self.nu
+        c = jax.scipy.special.gammaln(0.5 * (nu + 1)) - jax.scipy.special.gammaln(0.5 * nu) - 0.5 * math.log(nu * math.pi)
+        return n * c - n * jnp.log(sigma) - 0.5 * (nu + 1) * jnp.sum(jnp.log1p((r / sigma) ** 2 / nu))
+
+    def _design(self, model):
+        A = jnp.concatenate([model.features(u, d) for u, _, d in self.args])
+        y = jnp.concatenate([y for _, y, _ in self.args])
+        # column scaling (exact: prior sd scaled alike) keeps the normal equations well conditioned
+        c = jnp.maximum(jnp.sqrt(jnp.mean(A * A, axis=0)), 1e-12)
+        return A / c[None, :], y, c
+
+    def _fixed_weights(self, sigma, key=None):
+        """Scaled weights given ``sigma`` for a fixed design: the conditional mean (= the ridge estimate), plus a
+        draw from the conditional Gaussian when ``key`` is given (the eigenbasis of `_fixed_design`)."""
+        _, _, c, U, lam, g = self.design
+        tau = self.gain_scale * c
+        shrink = 1.0 / (lam / sigma**2 + 1.0)
+        v = shrink * g / sigma**2
+        if key is not None:
+            v = v + jnp.sqrt(shrink) * jax.random.normal(key, v.shape)
+        return tau * (U @ v)
+
+    def _fixed_loglik(self, sigma):
+        """`_loglik` for a fixed design in O(p) per point (no p x p factorisation per walker and step)."""
+        A, y, _, _, lam, g = self.design
+        if self.linear == "profile":
+            return self._loglik_resid(A @ self._fixed_weights(sigma) - y, sigma)
+        n = y.shape[0]
+        shrink = 1.0 / (lam / sigma**2 + 1.0)
+        quad = jnp.sum(y * y) / sigma**2 - jnp.sum(shrink * g * g) / sigma**4
+        logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log1p(lam / sigma**2))
+        return -0.5 * (quad + logdet_cov + n * _LOG2PI)
+
+    def _gain_system(self, model, sigma):
+        """Normal equations of the gains' conditional Gaussian (scaled coordinates)."""
+        A, y, c = self._design(model)
+        tau = self.gain_scale * c
+        M = A.T @ A / sigma**2 + jnp.diag(1.0 / tau**2)
+        b = A.T @ y / sigma**2
+        return A, y, c, tau, M, b
+
+    def log_prob(self, theta):
+        raw_train, raw_noise = self.unravel(theta)
+        model = constrain(eqx.combine(raw_train, self.static))
+        phys_leaves = jax.tree_util.tree_leaves((constrain(raw_train), constrain(raw_noise)))
+        lp = log_jacobian(raw_train) + log_jacobian(raw_noise)
+        for leaf, prior in zip(phys_leaves, self.priors):
+            lp = lp + prior.logpdf(leaf)
+        if not self.prior_only:
+            lp = lp + self._loglik(model, constrain(raw_noise).sigma)
+        return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
+
+    def _loglik(self, model, sigma):
+        if self.linear == "sample":
+            r = jnp.concatenate([model.simulate(u, d) - y for u, y, d in self.args])
+            return self._loglik_resid(r, sigma)
+        if self.design is not None:
+            return self._fixed_loglik(sigma)
+        A, y, c, tau, M, b = self._gain_system(model, sigma)
+        if self.linear == "profile":
+            return self._loglik_resid(A @ _ridge_lstsq(A, y, sigma / tau) - y, sigma)
+        # marginal likelihood of y ~ N(0, sigma^2 I + A diag(tau^2) A^T) via the p x p system
+        n = y.shape[0]
+        L = jnp.linalg.cholesky(M)
+        z = jax.scipy.linalg.solve_triangular(L, b, lower=True)
+        logdet_M = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
+        quad = jnp.sum(y * y) / sigma**2 - jnp.sum(z * z)
+        logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log(tau**2)) + logdet_M
+        return -0.5 * (quad + logdet_cov + n * _LOG2PI)
+
+    def predict(self, theta, key, u, dt):
+        model, sigma = self.unpack(theta)
+        k1, k2 = jax.random.split(key)
+        if self.design is not None:
+            c = self.design[2]
+            mean = self._fixed_weights(sigma, None if self.linear == "profile" else k1)
+            model = model.with_hysteresis(model.hysteresis.with_linear_weights(mean / c))
+        elif self.linear != "sample":
+            A, y, c, tau, M, b = self._gain_system(model, sigma)
+            if self.linear == "profile":
+                mean = _ridge_lstsq(A, y, sigma / tau)
+            else:
+                L = jnp.linalg.cholesky(M)
+                mean = jax.scipy.linalg.cho_solve((L, True), b)
+                z = jax.random.normal(k1, mean.shape)
+                mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
+            model = model.with_hysteresis(model.hysteresis.with_linear_weights(mean / c))
+        f = model.simulate(u, dt)
+        e = jax.random.normal(k2, f.shape) if self.noise == "gaussian" else jax.random.t(k2, self.nu, f.shape)
+        return f, f + sigma * e
+
+
+_TRACES = [0]
+
+
+@eqx.filter_jit
+def _design_jit(density, model):
+    return density._design(model)
+
+
+def _fixed_design(density, model):
+    """``(A, y, c, U, lam, g)`` for a model whose weights' design does not depend on the sampled parameters
+    (only the noise scale is sampled: a Preisach, a bare EUPI).  With the prior sds ``tau`` of the scaled
+    weights, ``diag(tau) A'A diag(tau) = U diag(lam) U'`` (one eigendecomposition) and ``g = U' diag(tau) A'y``;
+    the marginal likelihood, the conditional mean and its draws are then O(p) / O(p^2) per point instead
+    of a p x p Cholesky factorisation (p = 301 for the default Preisach grid)."""
+    A, y, c = (np.asarray(x) for x in _design_jit(density, model))
+    tau = np.asarray(density.gain_scale) * c
+    lam, U = np.linalg.eigh((A.T @ A) * np.outer(tau, tau))
+    g = U.T @ (tau * (A.T @ y))
+    return tuple(jnp.asarray(x) for x in (A, y, c, U, np.maximum(lam, 0.0), g))
+
+
+@jax.jit
+def _batch_log_prob(density, thetas):
+    _TRACES[0] += 1  # runs at trace time only
+    return jax.vmap(density.log_prob)(thetas)
+
+
+@jax.jit
+def _batch_physical(density, thetas):
+    return jax.vmap(density.physical)(thetas)
+
+
+@jax.jit
+def _batch_predict(density, thetas, keys, u, dt):
+    return jax.vmap(lambda t, k: density.predict(t, k, u, dt))(thetas, keys)
+
+
+# -- running ------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class SampleRun:
+    """A finished (or resumed) chain: ``chain`` (n_steps, n_walkers, ndim) in unconstrained coordinates."""
+
+    chain: np.ndarray
+    log_prob: np.ndarray
+    acceptance_fraction: np.ndarray
+    names: list
+    path: str | None
+    resumed_from: int
+
+
+def _hdf_backend(path, name, read_only=False):
+    """emcee's HDF5 backend, made tolerant of a reader holding the file for a moment.
+
+    HDF5 locks the file while it is open; emcee opens it for every step, so a
+    concurrent reader (a user inspecting the chain) would make the sampler crash
+    with ``BlockingIOError``.  Opening is retried for up to 30 s instead.
+    """
+    import emcee
+
+    class _Backend(emcee.backends.HDFBackend):
+        def open(self, mode="r"):
+            deadline = time.monotonic() + 30.0
+            while True:
+                try:
+                    return super().open(mode)
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        raise
+                    time.sleep(0.05)
+
+    return _Backend(str(path), name=name, read_only=read_only)
+
+
+def _backend_ok(path, name):
+    """Iteration count of a readable emcee HDF5 chain, or None if unreadable."""
+    try:
+        be = _hdf_backend(path, name, read_only=True)
+        it = int(be.iteration)
+        if it > 0:
+            be.get_last_sample()
+        return it
+    except (OSError, KeyError, ValueError, AttributeError, RuntimeError):
+        return None
+
+
+def _checkpoint(path):
+    """Atomic copy of the (closed) HDF5 file: the fallback if a kill corrupts the live file."""
+    bak = Path(str(path) + ".bak")
+    tmp = bak.with_name(bak.name + ".tmp")
+    shutil.copyfile(path, tmp)
+    with open(tmp, "rb") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, bak)
+
+
+def run_sampler(
+    posterior,
+    n_steps,
+    *,
+    n_walkers=None,
+    path=None,
+    name="mcmc",
+    seed=0,
+    resume=True,
+    progress=True,
+    checkpoint_s=10.0,
+    initial=None,
+    on_step=None,
+):
+    """Run (or resume) `emcee.EnsembleSampler` with the vectorised log-posterior.
+
+    With ``path`` the chain goes to an emcee HDF5 backend.  If the file already
+    holds a chain and ``resume`` is true, sampling continues from its last step
+    until the chain has exactly ``n_steps`` steps (emcee stores the random state,
+    so a resumed run continues the same Markov chain).  A copy taken between
+    steps every ``checkpoint_s`` seconds is used when a hard kill has left the
+    live file unreadable (the steps since the copy are recomputed, never duplicated).
+    """
+    import emcee
+
+    n_steps = int(n_steps)
+    if n_steps < 1:
+        raise UserInputError(f"number of steps must be >= 1, got {n_steps}")
+    ndim = posterior.ndim
+    n_walkers = resolve_walkers(ndim, n_walkers)
+    rng = np.random.default_rng(seed)
+    backend = None
+    done = 0
+    if path is not None:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.exists() and resume:
+            it = _backend_ok(path, name)
+            bak = Path(str(path) + ".bak")
+            if it is None:
+                it_bak = _backend_ok(bak, name) if bak.exists() else None
+                if it_bak is None:
+                    raise UserInputError(
+                        f"{path}: the chain file is unreadable and has no usable checkpoint; rerun with a fresh output (restart)"
+                    )
+                print(
+                    f"note: {path} was left unreadable by an interruption; continuing from its checkpoint at step {it_bak}",
+                    file=sys.stderr,
+                )
+                shutil.copyfile(bak, path)
+                it = it_bak
+            done = it
+        elif path.exists():
+            path.unlink()
+        backend = _hdf_backend(path, name)
+        if done and backend.shape != (n_walkers, ndim):
+            raise UserInputError(
+                f"{path}: holds a chain of shape {backend.shape} (walkers, parameters); this run has {(n_walkers, ndim)}; restart instead of resuming"
+            )
+        if done > n_steps:
+            raise UserInputError(f"{path}: already holds {done} steps, more than the {n_steps} requested")
+        if not done:
+            backend.reset(n_walkers, ndim)
+    sampler = emcee.EnsembleSampler(n_walkers, ndim, posterior, vectorize=True, backend=backend)
+    start = None
+    if done:
+        state = None  # emcee restores the last position, log-probabilities and random state
+        print(f"resuming {path} at step {done} of {n_steps}", file=sys.stderr)
+    else:
+        sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
+        state = posterior.initial_ball(n_walkers, rng) if initial is None else np.asarray(initial)
+        start = np.array(state, dtype=np.float64)
+        if path is not None:
+            _store_start(backend, start)
+    remaining = n_steps - done
+    if remaining > 0:
+        if state is None:
+            state = sampler.get_last_sample()
+        last = time.monotonic()
+        kwargs = {"progress": progress, "progress_kwargs": {"desc": "sampling", "file": sys.stderr}} if progress else {}
+        for i, _ in enumerate(sampler.sample(state, iterations=remaining, **kwargs)):
+            # here the step is saved and the file closed: safe to copy
+            if path is not None and (time.monotonic() - last >= checkpoint_s):
+                _checkpoint(path)
+                last = time.monotonic()
+            if on_step is not None:
+                on_step(done + i + 1)
+        if path is not None:
+            _checkpoint(path)
+    return _collect(sampler.backend, posterior.names, str(path) if path is not None else None, done, start)
+
+
+_START = "start_coords"  # dataset beside emcee's in the HDF5 group: the walkers' starting positions
+
+
+def _store_start(backend, start):
+    with backend.open("a") as f:
+        g = f[backend.name]
+        if _START in g:
+            del g[_START]
+        g.create_dataset(_START, data=start)
+
+
+def _read_start(backend):
+    try:
+        with backend.open() as f:
+            g = f[backend.name]
+            return np.asarray(g[_START]) if _START in g else None
+    except (OSError, KeyError, AttributeError):
+        return None
+
+
+def _acceptance_from_chain(chain, start):
+    """Per-walker fraction of steps that moved: a stretch move is accepted iff the position changes.
+
+    Counted from the stored chain rather than emcee's running ``accepted`` total,
+    which a hard kill between emcee's writes can leave one step ahead of the
+    chain (so a resumed run would count that step twice).  Without the stored
+    start (files written by older versions) the first step is not counted.
+    """
+    if start is not None and start.shape == chain.shape[1:]:
+        chain = np.concatenate([start[None], chain], axis=0)
+    if chain.shape[0] < 2:
+        return np.zeros(chain.shape[1])
+    moved = np.any(chain[1:] != chain[:-1], axis=-1)
+    return moved.mean(axis=0)
+
+
+def _collect(backend, names, path, resumed_from, start=None):
+    chain = np.asarray(backend.get_chain())
+    if start is None and path is not None:
+        start = _read_start(backend)
+    return SampleRun(
+        chain=chain,
+        log_prob=np.asarray(backend.get_log_prob()),
+        acceptance_fraction=_acceptance_from_chain(chain, start),
+        names=list(names),
+        path=path,
+        resumed_from=resumed_from,
+    )
+
+
+def load_run(path, names, name="mcmc"):
+    """`SampleRun` from an emcee HDF5 file written by `run_sampler`."""
+    return _collect(_hdf_backend(path, name, read_only=True), names, str(path), 0)
+
+
+# -- diagnostics and summary --------------------------------------------------
+
+
+def diagnostics(run, burn=None, *, warn=True):
+    """emcee autocorrelation times, acceptance fraction and effective sample sizes.
+
+    ``burn=None`` discards ``max(n_steps // 5, 3 tau_max)`` (at most half the chain).
+    Warns (`ChainTooShortWarning`) when the kept chain is shorter than 50 tau_max,
+    emcee's own criterion for a reliable tau.
+    """
+    import emcee
+
+    chain = run.chain
+    n_steps, n_walkers, _ = chain.shape
+    tau_all = emcee.autocorr.integrated_time(chain, tol=0)
+    if burn is None:
+        burn = min(n_steps // 2, max(n_steps // 5, int(math.ceil(3 * np.nanmax(tau_all)))))
+    burn = int(burn)
+    if not 0 <= burn < n_steps:
+        raise UserInputError(f"burn-in must be in [0, {n_steps}), got {burn}")
+    kept = chain[burn:]
+    tau = emcee.autocorr.integrated_time(kept, tol=0)
+    n_kept = kept.shape[0]
+    ess = n_kept * n_walkers / tau
+    tau_max = float(np.nanmax(tau))
+    reliable = bool(n_kept >= 50 * tau_max)
+    messages = []
+    if not reliable:
+        msg = (
+            f"chain too short for reliable estimates: {n_kept} steps kept after burn-in, fewer than 50 x the "
+            f"largest autocorrelation time ({tau_max:.1f} steps); run at least {int(math.ceil(50 * tau_max + burn))} steps"
+        )
+        messages.append(msg)
+        if warn:
+            warnings.warn(msg, ChainTooShortWarning, stacklevel=2)
+    acc = float(np.mean(run.acceptance_fraction))
+    if not 0.1 <= acc <= 0.8:
+        messages.append(f"mean acceptance fraction {acc:.2f} is outside [0.1, 0.8]: the ensemble may be stuck or badly scaled")
+    return {
+        "burn": burn,
+        "n_steps": int(n_steps),
+        "n_walkers": int(n_walkers),
+        "autocorr_time": tau,
+        "ess": ess,
+        "acceptance_fraction": acc,
+        "reliable": reliable,
+        "warnings": messages,
+    }
+
+
+def _stats(x):
+    q = np.quantile(x, [0.025, 0.05, 0.5, 0.95, 0.975])
+    return {
+        "mean": float(np.mean(x)),
+        "sd": float(np.std(x, ddof=1)),
+        "q025": float(q[0]),
+        "q05": float(q[1]),
+        "median": float(q[2]),
+        "q95": float(q[3]),
+        "q975": float(q[4]),
+    }
+
+
+def derived_quantities(posterior, phys):
+    """Thermal time constant ``1/k1`` and steady-state gain ``k2/k1`` (when k2 is identified)."""
+    names = posterior.names
+    out = {}
+    k1n = next((n for n in names if n in ("thermal.k1", "k1") or n.endswith(".thermal.k1")), None)
+    k2n = next((n for n in names if n in ("thermal.k2", "k2") or n.endswith(".thermal.k2")), None)
+    if k1n:
+        out["time_constant_s"] = _stats(1.0 / phys[:, names.index(k1n)])
+    if k1n and k2n:
+        out["steady_state_gain"] = _stats(phys[:, names.index(k2n)] / phys[:, names.index(k1n)])
+    elif isinstance(posterior.model, Cascade) or isinstance(getattr(posterior.model, "base", None), Cascade):
+        out["steady_state_gain"] = {
+            "identified": False,
+            "note": "k2 does not affect the cascade's displacement (it cancels in "
+            "sqrt(theta k1/k2)); K2/K1 is identified only by the JouleThermal model fitted alone (U^2 -> output)",
+        }
+    elif isinstance(posterior.model, JouleThermal) and k1n:
+        k2 = float(posterior.model.k2)
+        out["steady_state_gain"] = {"identified": False, "note": f"k2 held fixed at {k2:g}"}
+    return out
+
+
+def summarize(posterior, run, burn=None, *, warn=True):
+    """``summary.json`` content: per-parameter posterior statistics (physical units) and run diagnostics."""
+    diag = diagnostics(run, burn, warn=warn)
+    flat = run.chain[diag["burn"] :].reshape(-1, posterior.ndim)
+    phys = posterior.physical(flat)
+    params = {}
+    for j, name in enumerate(posterior.names):
+        params[name] = {**_stats(phys[:, j]), "autocorr_time": float(diag["autocorr_time"][j]), "ess": float(diag["ess"][j])}
+    return {
+        "parameters": params,
+        "derived": derived_quantities(posterior, phys),
+        "autocorr_time": {n: float(t) for n, t in zip(posterior.names, diag["autocorr_time"])},
+        "autocorr_time_max": float(np.nanmax(diag["autocorr_time"])),
+        "acceptance_fraction": diag["acceptance_fraction"],
+        "n_steps": diag["n_steps"],
+        "n_walkers": diag["n_walkers"],
+        "burn": diag["burn"],
+        "n_samples": int(flat.shape[0]),
+        "ess_min": float(np.nanmin(diag["ess"])),
+        "reliable": diag["reliable"],
+        "warnings": diag["warnings"],
+        "settings": {
+            "noise": posterior.noise,
+            "nu": posterior.nu if posterior.noise == "student-t" else None,
+            "linear": posterior.linear,
+            "gain_scale": posterior.gain_scale if posterior.linear != "sample" else None,
+            "priors": {k: v.to_dict() for k, v in posterior.priors.items()},
+        },
+    }

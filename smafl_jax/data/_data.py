@@ -1,0 +1,71 @@
+"""Loading measured records: the entry point every CLI command uses, delegating to `smafl_jax.data.load`.
+
+One reader for the whole package: `load_record` here keeps its historical
+signature (``path, input, output, *, time, require_output, min_samples,
+dt_rtol``) and adds ``resample``; the reading itself (UTF-8 byte-order mark,
+cp1252 fallback, delimiter sniffing with decimal commas, JSON sidecar with
+units / description / default columns / load, precise `DataError` messages
+naming file, column and line) is `smafl_jax.data.load.load_record`.  `Record`
+is `smafl_jax.data.record.Record`: the same fields as before plus
+``processing`` (what was done on loading), ``gaps``, ``load`` and ``metadata``.
+
+Irregular time stamps are refused with the fix in the message (``--resample
+DT``) unless ``resample`` is given; then ``Record.processing`` says what was
+done.
+"""
+
+from __future__ import annotations
+
+from .load import INPUT_CANDIDATES, OUTPUT_CANDIDATES, file_sha256
+from .load import load_record as _load_record
+from .record import DEFAULT_DT_RTOL, Record
+
+__all__ = ["Record", "load_record", "file_sha256", "INPUT_CANDIDATES", "OUTPUT_CANDIDATES", "DEFAULT_DT_RTOL", "parse_resample"]
+
+
+def load_record(
+    path,
+    input: str | None = None,
+    output: str | None = None,
+    *,
+    time: str = "time_s",
+    require_output: bool = True,
+    min_samples: int = 10,
+    dt_rtol: float = DEFAULT_DT_RTOL,
+    resample: float | str | None = None,
+) -> Record:
+    """Read and validate a record; ``input``/``output`` select columns (defaults: sidecar, then common names).
+
+    ``resample``: None (irregular sampling is an error that names the gap and
+    suggests ``--resample``), a sample time in seconds, or ``"auto"`` (the
+    median step): linear interpolation onto a uniform grid, reported in
+    ``Record.processing``.  ``row`` numbers in errors are file line numbers
+    (the header is line 1).
+    """
+    return _load_record(
+        path,
+        input,
+        output,
+        time=time,
+        require_output=require_output,
+        min_samples=min_samples,
+        dt_rtol=dt_rtol,
+        resample=resample,
+    )
+
+
+def parse_resample(text: str | float | None) -> float | str | None:
+    """The ``--resample`` option: None, ``"auto"`` or a positive number of seconds (`UserInputError` otherwise)."""
+    import math
+
+    from .._errors import UserInputError
+
+    if text is None or text == "auto":
+        return text
+    try:
+        dt = float(text)
+    except (TypeError, ValueError):
+        raise UserInputError(f"--resample needs a sample time in seconds or 'auto', got {text!r}") from None
+    if not (math.isfinite(dt) and dt > 0):
+        raise UserInputError(f"--resample needs a positive sample time in seconds, got {text!r}")
+    return dt

@@ -1,0 +1,1548 @@
+"""Residual diagnosis and effect attribution (issue 6).
+
+Procedure (`diagnose`):
+
+1. **Base model** (`choose_base`): a voltage input with dynamics gets the
+   `Cascade` (Joule thermal lag + EUPI); a rate-free record (a ``branch``
+   column, or a sample time >= 5 s: quasi-static data) or a non-voltage input
+   (temperature, pressure) gets the `EUPI` on the input itself (``u_ref`` = input
+   minimum for non-voltage inputs).
+2. **Split** (`make_split`, rules in `smafl_jax.data.split`): with a ``branch`` column, the branches at
+   positions ``2 mod 3`` of the sorted labels are held out (interleaved, so every held-out reversal lies between
+   trained ones; branch 0, the major loop, is always trained on); otherwise the
+   last 30 % of the record is held out (time block; the model is run over the
+   whole record from the start and scored on the block).
+3. **Residuals** of the base fit: whiteness (ACF with bounds, Ljung-Box),
+   cross-correlation with the input's past, correlation with candidate signals
+   (`smafl_jax.diagnosis._residuals`).
+4. **Evidence** per catalogue effect: a score (Lagrange-multiplier) test.  The
+   effect's signature is the change of the model output when the effect is
+   switched on weakly (several probes cover its nuisance parameters); the
+   base-model directions (EUPI features, thermal rate) are projected out, and
+   the partial R^2 of the residual on the signature, with a Bartlett-effective
+   sample size, gives the evidence.
+5. **Attribution**: the plausible effects (p < 0.01), best first, up to
+   ``max_candidates``, are each fitted jointly with the base model (grid start
+   for the effect's nonlinear parameters, linear least squares for the gains,
+   then joint Levenberg-Marquardt).  Selection, ``rule="calibrated"`` (default,
+   issue 13, `calibration_gates`): an effect is *accepted* when its held-out
+   RMSE gain is >= ``min_gain`` (5 %), it does not raise the held-out max
+   |error|, its gain is positive in all (or all but one) of 3 folds (contiguous
+   time blocks each held out in turn, or the 3 branch residues), and the gain
+   exceeds the (1 - fpr) quantile (fpr 1 %) of the gains the same effect reaches
+   on 10 parametric-bootstrap null records (the fitted model without the effect
+   plus an AR model of its own training residuals).  The best accepted one is
+   selected; accepted ones within 10 % of its held-out RMSE are reported as an
+   ambiguous set; a second effect must pass the same gates against the
+   one-effect model.  ``rule="legacy"`` (issue 6): held-out gain >= ``min_gain``
+   on one split and lower training BIC.  Nothing accepted: ``selected = []``
+   and the strongest remaining residual correlate is reported.
+6. **Base replacement** ``nonlocal_memory`` (rate-free records only: a
+   ``branch`` column or dt >= 5 s): a discrete Preisach model
+   (`smafl_jax.models._preisach`) replaces the EUPI; grid size and Tikhonov strength
+   are chosen by inner cross-validation on the training segments only; it has
+   no score test (it is not nested in the base), so it is always fitted there
+   and competes under the same held-out RMSE + BIC rule, its parameter count
+   being the effective degrees of freedom ``trace(H)``.  When it is selected no
+   second effect is added (the catalogue effects act on the EUPI).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import _config  # noqa: F401
+from .._errors import UserInputError
+from .._progress import LOGGER as PROGRESS
+from .._progress import Steps
+from ..effects import EFFECTS, ExtendedModel, Log, effect_rank
+from ..identify._metrics import metrics
+from ..models._cascade import Cascade
+from ..models._eupi import EUPI
+from ..models._padding import padded_call
+from ..models._preisach import Preisach, cv_fit_preisach
+from ..models._thermal import JouleThermal
+from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
+
+__all__ = ["choose_base", "make_split", "fit_extended", "effect_evidence", "diagnose", "Segment", "Split"]
+
+VOLTAGE_NAMES = ("voltage", "volt", "u_v")
+LOAD_NAMES = ("load", "force", "mass", "weight")
+RATE_FREE_DT = 5.0
+HOLDOUT_FRACTION = 0.3
+
+
+def _log(msg, verbose):
+    if verbose:
+        print(msg, file=sys.stderr, flush=True)
+
+
+# -- base model and split ---------------------------------------------------------
+
+
+def is_rate_free(record):
+    return "branch" in record.extra or record.dt >= RATE_FREE_DT
+
+
+def is_voltage(name):
+    n = (name or "").lower()
+    return any(k in n for k in VOLTAGE_NAMES) or n in ("u", "input")
+
+
+def screened_base(base0, split, verbose=False):
+    """``(base, table)``: ``base0`` with the orientation, hysteresis input and thermal start that `screen_start` picks.
+
+    The residual -> effect loop is only as good as its base: a length sensor fitted with rising gains, or a
+    cold-start record fitted from equilibrium, leaves structured residuals that some effect will "explain"
+    (issues 13 and 18).  The training segments are screened; the held-out samples choose the hysteresis input
+    when they lie on the training segments' own time axis (a time-block split).  ``table`` is None when the
+    base has no hysteresis part to screen.
+    """
+    from ..identify._choose import screen_start
+    from ..models._hysteresis import hysteresis_of
+
+    if hysteresis_of(base0) is None:
+        return base0, None
+    data = [(s.u, s.y, s.dt) for s in split.train]
+    weights = [s.mask.astype(float) for s in split.train]
+    same_axis = len(split.train) == len(split.test) == 1 and len(split.train[0].u) == len(split.test[0].u)
+    val = [split.test[0].mask.astype(float)] if same_axis else None
+    model, table, _ = screen_start(base0, data, weights, val_weights=val, memory="rule")
+    th = getattr(model, "thermal", None)
+    _log(
+        f"base start screened: orientation {hysteresis_of(model).orientation:+d}"
+        + (
+            f", sees {model.sees}, thermal start {th.init}" + (f" u0 {float(th.u0):.4g}" if th.u0 is not None else "")
+            if th
+            else ""
+        ),
+        verbose,
+    )
+    return model, table
+
+
+def _start_doc(model, screened):
+    """How the base started (diagnosis.json ``base.start``): screened or fixed, orientation, thermal start."""
+    from ..models._hysteresis import hysteresis_of
+
+    h = hysteresis_of(model)
+    th = getattr(getattr(model, "base", model), "thermal", None)
+    doc = {"rule": "screened (as smafl fit)" if screened is not None else "fixed", "candidates": screened}
+    if h is not None:
+        doc["orientation"] = int(h.orientation)
+    if th is not None:
+        doc.update(thermal_init=th.init, u0=None if th.u0 is None else float(th.u0))
+    return doc
+
+
+def choose_base(record):
+    """Untrained base model and the rule that picked it (see module docstring)."""
+    u = np.asarray(record.u)
+    if is_voltage(record.input_name) and not is_rate_free(record):
+        model = Cascade(thermal=JouleThermal(), hysteresis=EUPI.from_range(0.0, float(u.max())))
+        return model, "cascade: voltage input with dynamics (Joule thermal lag + EUPI on the effective voltage)"
+    if is_voltage(record.input_name):
+        return EUPI.from_range(
+            float(u.min()), float(u.max())
+        ), "EUPI on the voltage: rate-free record (branch column or dt >= 5 s)"
+    return (
+        EUPI.from_range(float(u.min()), float(u.max()), u_ref=float(u.min())),
+        f"EUPI on the input: '{record.input_name}' is not a voltage (u_ref = input minimum)",
+    )
+
+
+def check_record(record):
+    """Refuse records a diagnosis cannot identify anything from, with one line naming the file and column."""
+    where = f"{record.path or record.name}"
+    if record.y is None:
+        raise UserInputError(f"{where}: diagnose needs an output column")
+    u, y = np.asarray(record.u, float), np.asarray(record.y, float)
+    for col, v in ((record.input_name, u), (record.output_name, y)):
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise UserInputError(f"{where}: column '{col}' has a non-finite value at sample {int(bad[0])}")
+    if np.ptp(u) == 0:
+        raise UserInputError(
+            f"{where}: input column '{record.input_name}' is constant ({u[0]:g}) over all {u.size} samples: "
+            "a diagnosis needs an input that varies"
+        )
+    if np.ptp(y) == 0:
+        raise UserInputError(f"{where}: output column '{record.output_name}' is constant ({y[0]:g}): nothing to fit")
+    if is_voltage(record.input_name) and float(u.max()) <= 0:
+        raise UserInputError(
+            f"{where}: voltage column '{record.input_name}' is <= 0 everywhere (max {u.max():g} V); the actuator is "
+            "driven by positive voltages (negate the column if the sign convention is inverted)"
+        )
+
+
+def _not_applicable_reason(name, base, rate_free, split):
+    if name == NONLOCAL_MEMORY["name"]:
+        return (
+            "the Preisach replacement is offered for rate-free records only (a 'branch' column or a sample time >= "
+            f"{RATE_FREE_DT:g} s); this record has dynamics (sample time {split.train[0].dt:g} s, no 'branch' column)"
+        )
+    cls = EFFECTS[name]
+    if "thermal" in cls.needs and not isinstance(base, Cascade):
+        return "it acts on the Joule thermal model, and this record's base model has none (not a voltage input with dynamics)"
+    if "time" in cls.needs and rate_free:
+        return "it needs time dynamics, and this record is rate-free"
+    if "load" in cls.needs:
+        return "it needs a load column (load, force, mass, weight) and a time split"
+    return "not applicable"
+
+
+def load_column(record):
+    for k in record.extra:
+        if any(n in k.lower() for n in LOAD_NAMES):
+            return k
+    return None
+
+
+@dataclasses.dataclass
+class Segment:
+    """A stretch simulated from its start; scored on ``mask``."""
+
+    time: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    dt: float
+    mask: np.ndarray
+    load: np.ndarray | None = None
+    extra: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class Split:
+    kind: str
+    rule: str
+    train: list
+    test: list
+    train_labels: list = dataclasses.field(default_factory=list)
+    test_labels: list = dataclasses.field(default_factory=list)
+
+
+def _segment(rec, idx, mask=None, load_col=None):
+    sub = rec.take(idx)
+    n = len(sub)
+    return Segment(
+        time=sub.time,
+        u=sub.u,
+        y=sub.y,
+        dt=rec.dt,
+        mask=np.ones(n, bool) if mask is None else mask,
+        load=None if load_col is None else sub.extra[load_col],
+        extra={k: v for k, v in sub.extra.items() if k != "branch"},
+    )
+
+
+def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2):
+    """Documented split (rules in `smafl_jax.data.split`): interleaved branches or the last 30 % as a time block.
+
+    With a ``branch`` column: of the sorted branch labels, positions ``i % 3 == holdout_residue`` (default
+    2) are held out, position 0 (the major loop) always trains (`data.split.branches`); other residues
+    (0, 1) give the cross-validation folds of a branch record.  Otherwise the time block
+    (`data.split.time_block`; the model is run from t = 0).  Segments carry the record's load column.
+    """
+    from ..data import split as _split
+
+    branch = "branch" in record.extra
+    if branch:
+        if holdout_residue not in (0, 1, 2):
+            raise UserInputError(f"holdout_residue must be 0, 1 or 2, got {holdout_residue!r}")
+        sp = _split.branches(record, holdout_residue)
+    else:
+        sp = _split.time_block(record, holdout_fraction)
+
+    def labels(ls):  # numeric branch labels in diagnosis.json, as before (`data.split` labels are strings)
+        return [int(float(k)) if float(k).is_integer() else float(k) for k in ls] if branch else list(ls)
+
+    lc = load_column(record)
+    train = [_segment(record, s.index, mask=s.mask, load_col=lc) for s in sp.train]
+    test = [_segment(record, s.index, mask=s.mask, load_col=lc) for s in sp.test]
+    return Split(sp.kind, sp.rule, train, test, labels(sp.train_labels), labels(sp.test_labels))
+
+
+# -- simulation and metrics -------------------------------------------------------
+
+
+@eqx.filter_jit
+def _sim_jit(model, u, load, dt):
+    # load=None is static here; models without a load input (Preisach) take (u, dt)
+    return model.simulate(u, dt) if load is None else model.simulate(u, dt, load=load)
+
+
+# The records' branches and blocks have many lengths: inputs are padded to a few lengths (`_padding`),
+# so that they share compilations (causal models: the padded samples are dropped, the rest is unchanged).
+def _sim(model, u, dt, load):
+    return padded_call(_sim_jit, model, (u, load), dt)
+
+
+_features_jit = eqx.filter_jit(lambda model, u, dt: model.features(u, dt))
+_linear_columns_jit = eqx.filter_jit(lambda model, u, dt: model.linear_columns(u, dt))
+
+
+def _features(model, u, dt):
+    return padded_call(_features_jit, model, (u,), dt)
+
+
+def _linear_columns(model, u, dt):
+    return padded_call(_linear_columns_jit, model, (u,), dt)
+
+
+def simulate_segment(model, seg):
+    load = None if seg.load is None else jnp.asarray(seg.load)
+    return np.asarray(_sim(model, jnp.asarray(seg.u), jnp.asarray(seg.dt), load))
+
+
+def score(model, segs):
+    y = np.concatenate([s.y[s.mask] for s in segs])
+    yh = np.concatenate([simulate_segment(model, s)[s.mask] for s in segs])
+    return metrics(y, yh), y - yh
+
+
+# -- fitting ------------------------------------------------------------------------
+
+
+def trainable_spec(model):
+    """Train thermal k1, hysteresis weights and effect parameters; keep grids, k2 and load references fixed."""
+    return model.trainable_spec()
+
+
+def n_parameters(model):
+    spec = trainable_spec(model)
+    return int(sum(np.size(x) for x, t in zip(jax.tree_util.tree_leaves(model), jax.tree_util.tree_leaves(spec)) if t))
+
+
+def _bvls(A, b, nonneg):
+    """Bounded least squares (`smafl_jax.identify.linear.solve`: column-scaled, Cholesky-reduced BVLS).
+
+    No ``drop_constant`` and no ``clip`` here, unlike `smafl_jax.identify._fit`: the diagnosis keeps its earlier numbers.
+    """
+    from ..identify.linear import solve
+
+    return solve(A, b, nonneg, clip=False).x
+
+
+def _design(model, segs):
+    """Stacked design matrix and targets over the scored samples, and the linear effect fields it adds.
+
+    Columns: the hysteresis weights' features, the linear-stage effects' columns (`ExtendedModel.linear_columns`),
+    then each output-stage effect's `profile_design` (the load effect scales them and adds its offset column).
+    Returns ``(A, y, added)``, ``added`` the ``(effect name, field)`` of each column after the weights.
+    """
+    lin = model.linear_column_fields()
+    outs = model.stage_effects("output")
+    rows, targets = [], []
+    added = list(lin)
+    for s in segs:
+        F = np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]
+        if lin:  # linear effect fields enter beside the gains (before the output map, as in `ExtendedModel.simulate`)
+            C = np.asarray(_linear_columns(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask]
+            for j in range(len(lin)):
+                F = np.column_stack([F, C[:, j]])
+        t = (np.arange(len(s.u)) * float(s.dt))[s.mask]
+        load = None if s.load is None else np.asarray(s.load)[s.mask]
+        added = list(lin)  # the same for every segment
+        for e in outs:
+            F, fields = e.profile_design(F, t, load)
+            added += [(e.name, f) for f in fields]
+        rows.append(F)
+        targets.append(np.asarray(s.y, float)[s.mask])
+    return np.concatenate(rows), np.concatenate(targets), added
+
+
+def _compose_links(links):
+    """One `OutputLink` for output maps applied in order (forward composed, inverse reversed, slope by the chain rule)."""
+    if len(links) == 1:
+        return links[0]
+
+    def forward(z):
+        for lk in links:
+            z = lk.forward(z)
+        return z
+
+    def inverse(y):
+        for lk in reversed(links):
+            y = lk.inverse(y)
+        return y
+
+    def slope(z):
+        d = 1.0
+        for lk in links:
+            d = d * lk.slope(z)
+            z = lk.forward(z)
+        return d
+
+    return type(links[0])(forward, inverse, slope)
+
+
+def profile_gains(model, segs, *, gn_steps=8):
+    """Optimal hysteresis weights (bounded LS) for the model's nonlinear parameters; returns ``(model, sse)``.
+
+    Variable projection: every model here is linear in the weights (and in the linear effect fields, such as
+    the strain-accumulation rate and the load offset) except through a nonlinear output map (an output
+    effect's `profile_link`, output saturation); then the weights start from the least-squares fit of the
+    inverse-mapped output and are finished by Gauss-Newton steps, each a bounded least-squares problem.
+    """
+    eupi = model.hysteresis
+    A, y, added = _design(model, segs)
+    if not np.all(np.isfinite(A)):
+        return model, np.inf
+    nonneg = eupi.nonnegative_columns()
+    for _ in added:  # linear effect fields are signed
+        nonneg = np.r_[nonneg, False]
+    links = [lk for lk in (e.profile_link() for e in model.stage_effects("output")) if lk is not None]
+    if not links:
+        theta = _bvls(A, y, nonneg)
+        sse = float(np.sum((A @ theta - y) ** 2))
+    else:
+        link = _compose_links(links)
+        smap = link.forward
+        theta = _bvls(A, link.inverse(y), nonneg)
+        sse = float(np.sum((smap(A @ theta) - y) ** 2))
+        for _ in range(gn_steps):
+            z = A @ theta
+            J = A * link.slope(z)[:, None]
+            cand = _bvls(J, y - smap(z) + J @ theta, nonneg)
+            sse_c = float(np.sum((smap(A @ cand) - y) ** 2))
+            if not sse_c < sse:
+                break
+            done = sse - sse_c < 1e-9 * sse
+            theta, sse = cand, sse_c
+            if done:
+                break
+    for name, field in reversed(added):
+        model = eqx.tree_at(lambda mm: getattr(mm.get(name), field), model, jnp.asarray(theta[-1]))
+        theta = theta[:-1]
+    return model.with_hysteresis(eupi.with_linear_weights(jnp.asarray(theta))), sse
+
+
+#: The thermal rate of a `Cascade` base: searched on a log scale like the effects' positive parameters.
+_K1 = Log()
+_K1_STEP = 0.5
+
+
+def _phi_layout(model, ctx):
+    """Nonlinear (profiled-over) parameters: ``(effect name or None for the thermal part, field, Transform, step)``.
+
+    A thermal start given as an initial effective voltage ``u0`` (a screened base) is searched with k1: the two
+    trade off (a cold start looks like a slow lag), so holding one while moving the other biases both.
+    """
+    lay = []
+    if isinstance(model.base, Cascade):
+        lay.append((None, "k1", _K1, _K1_STEP))
+        th = model.base.thermal
+        if th.init == "given" and th.u0 is not None:
+            lay.append((None, "u0", _K1, _K1_STEP))
+    for e in model.effects:
+        lay += [(e.name, p.field, p.transform, p.step) for p in e.nonlinear(ctx)]
+    return lay
+
+
+def _get_phi(model, lay):
+    out = []
+    for name, field, tr, _ in lay:
+        v = float(getattr(model.base.thermal, field)) if name is None else float(getattr(model.get(name), field))
+        out.append(tr.to_phi(v))
+    return np.array(out)
+
+
+def _set_phi(model, lay, phi):
+    for (name, field, tr, _), p in zip(lay, phi):
+        v = jnp.asarray(tr.from_phi(p))
+        if name is None:
+            model = eqx.tree_at(lambda m: getattr(m.base.thermal, field), model, v)
+        else:
+            idx = [e.name for e in model.effects].index(name)
+            model = eqx.tree_at(lambda m: getattr(m.effects[idx], field), model, v)
+    return model
+
+
+def _effect_class(name):
+    if name not in EFFECTS:
+        raise UserInputError(f"unknown effect {name!r}; catalogue: {list(EFFECTS)}")
+    return EFFECTS[name]
+
+
+def _effect_grid(name, ctx):
+    """Starting points for an effect's nonlinear parameters (the gains come from least squares)."""
+    return _effect_class(name).grid(ctx)
+
+
+def _probe(name, ctx):
+    """Weak versions of an effect whose output change is its residual signature."""
+    return _effect_class(name).probes(ctx)
+
+
+def applicable_effects(base, split, rate_free):
+    """Catalogue effects that make sense for this base model and record."""
+    out = []
+    has_load = all(s.load is not None for s in split.train + split.test)
+    for name, cls in EFFECTS.items():
+        if "thermal" in cls.needs and not isinstance(base, Cascade):
+            continue
+        if "time" in cls.needs and rate_free:
+            continue
+        if "load" in cls.needs and (not has_load or len(split.train) != 1):
+            continue
+        out.append(name)
+    return out
+
+
+def _context(split):
+    y = np.concatenate([s.y[s.mask] for s in split.train])
+    ctx = {
+        "dt": float(split.train[0].dt),
+        "y_lo": float(y.min()),
+        "y_range": float(np.ptp(y)) or 1.0,
+        "y_mid": float(0.5 * (y.min() + y.max())),
+    }
+    ctx["duration"] = max(len(s.u) for s in split.train) * ctx["dt"]  # longest training stretch (creep tau bound)
+    if split.train[0].load is not None:
+        ld = np.concatenate([s.load for s in split.train])
+        ctx["load_ref"] = float(np.mean(ld))
+        ctx["load_scale"] = float(np.std(ld)) or 1.0
+    return ctx
+
+
+def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=False):
+    """Fit ``ExtendedModel(base, effects)`` on the training segments jointly.
+
+    Variable projection: the EUPI gains are profiled out by bounded least
+    squares (`profile_gains`), and the few nonlinear parameters (thermal rate
+    ``k1`` and the effects' parameters, log-transformed where positive) are
+    searched by Nelder-Mead from the best of a small grid of starts.  Effects
+    already in ``base`` (an `ExtendedModel`) start from their fitted values.
+    Returns ``(model, info)``.
+    """
+    from scipy.optimize import minimize
+
+    ctx = _context(split)
+    start = base if isinstance(base, ExtendedModel) else ExtendedModel(base, ())
+    have = set(start.effect_names)
+    new = [n for n in effects if n not in have]
+    starts = []
+    for combo in _product([_effect_grid(n, ctx) for n in new]):
+        m = ExtendedModel(start.base, tuple(sorted(tuple(start.effects) + tuple(combo), key=lambda e: effect_rank(e.name))))
+        starts.append(m)
+    if k1_grid is not None and isinstance(start.base, Cascade):
+        starts = [eqx.tree_at(lambda m: m.base.thermal.k1, c, jnp.asarray(k)) for c in starts for k in k1_grid]
+    t0 = time.time()
+    scored = sorted(((profile_gains(m, split.train)[1], i) for i, m in enumerate(starts)), key=lambda t: t[0])
+    if not np.isfinite(scored[0][0]):
+        raise UserInputError("every starting point of the fit gave a non-finite output")
+    best = starts[scored[0][1]]
+    lay = _phi_layout(best, ctx)
+    n_eval = len(starts)
+    if lay:
+        phi0 = _get_phi(best, lay)
+        cache = {}
+
+        def objective(phi):
+            key = tuple(np.round(phi, 12))
+            if key not in cache:
+                _, sse = profile_gains(_set_phi(best, lay, phi), split.train)
+                cache[key] = sse if np.isfinite(sse) else 1e300
+            return cache[key]
+
+        simplex = [phi0] + [phi0 + np.eye(len(lay))[i] * lay[i][3] for i in range(len(lay))]
+        res = minimize(
+            objective,
+            phi0,
+            method="Nelder-Mead",
+            options={"initial_simplex": np.array(simplex), "maxiter": max_iter or 150 * len(lay), "xatol": 1e-4, "fatol": 1e-10},
+        )
+        best = _set_phi(best, lay, res.x)
+        n_eval += len(cache)
+        converged = bool(res.success)
+    else:
+        converged = True
+    model, sse = profile_gains(best, split.train)
+    info = {
+        "n_starts": len(starts),
+        "n_evaluations": n_eval,
+        "nonlinear_parameters": len(lay),
+        "converged": converged,
+        "train_sse": sse,
+        "seconds": time.time() - t0,
+    }
+    _log(f"  fit {'+'.join(effects) or 'base'}: {len(starts)} starts, {n_eval} evaluations, {info['seconds']:.1f} s", verbose)
+    return model, info
+
+
+def _product(lists):
+    out = [()]
+    for lst in lists:
+        out = [o + (x,) for o in out for x in lst]
+    return out
+
+
+def _train_sse(model, segs):
+    return float(sum(np.sum((simulate_segment(model, s) - s.y)[s.mask] ** 2) for s in segs))
+
+
+#: Catalogue entry of the Preisach base replacement (see module docstring, step 6).
+NONLOCAL_MEMORY = {
+    "name": "nonlocal_memory",
+    "physics": (
+        "Return-point (wiping-out) memory without congruency: the SMA's phase-fraction hysteresis is a Preisach-type "
+        "distribution of hysterons (relays switching up at a, down at b <= a); first-order reversal curves identify "
+        "it, and play-operator (PI/EUPI) models cannot represent its non-congruent minor loops. Offered for "
+        "rate-free records only."
+    ),
+    "parameters": {
+        "w_ab": "hysteron weights on the triangular level grid (>= 0)",
+        "n_levels, lam": "grid size and Tikhonov strength, chosen by inner CV on the training segments",
+    },
+}
+
+
+def information_criteria(model, segs, k=None):
+    n = int(sum(s.mask.sum() for s in segs))
+    sse = _train_sse(model, segs)
+    if k is None:
+        k = n_parameters(model)
+    ll = n * np.log(max(sse, 1e-300) / n)
+    return {"n": n, "sse": sse, "k": k, "aic": float(ll + 2 * k), "bic": float(ll + k * np.log(n))}
+
+
+# -- evidence ----------------------------------------------------------------------
+
+
+def _project_out(B, x):
+    coef, *_ = np.linalg.lstsq(B, x, rcond=None)
+    return x - B @ coef
+
+
+def effect_evidence(model, split, names, residual):
+    """Score-test evidence for each effect name: partial R^2 of the training residual on its signature."""
+    ctx = _context(split)
+    seg_y = [simulate_segment(model, s) for s in split.train]
+    base_cols = [np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask] for s in split.train]
+    B = np.concatenate(base_cols)
+    if isinstance(model.base, Cascade):
+        k1 = model.base.thermal.k1
+        pert = eqx.tree_at(lambda m: m.base.thermal.k1, model, k1 * 1.01)
+        dk = np.concatenate([(simulate_segment(pert, s) - y0)[s.mask] for s, y0 in zip(split.train, seg_y)])
+        B = np.column_stack([B, dk])
+    colscale = np.maximum(np.sqrt(np.mean(B**2, axis=0)), 1e-12)
+    B = B / colscale
+    e = _project_out(B, residual)
+    out = {}
+    for name in names:
+        best = None
+        for probe in _probe(name, ctx):
+            m = ExtendedModel(model.base, tuple(model.effects) + (probe,))
+            sig = np.concatenate([(simulate_segment(m, s) - y0)[s.mask] for s, y0 in zip(split.train, seg_y)])
+            sp = _project_out(B, sig)
+            if not np.all(np.isfinite(sp)) or np.std(sp) < 1e-12 * (np.std(sig) + 1e-300):
+                continue
+            r = float(np.corrcoef(e, sp)[0, 1]) if np.std(e) > 0 else 0.0
+            n_eff = effective_n(e, sp)
+            stat = n_eff * r * r
+            from scipy import stats
+
+            item = {
+                "partial_r2": r * r,
+                "corr": r,
+                "n_eff": n_eff,
+                "lm_stat": stat,
+                "p_value": float(stats.chi2.sf(stat, 1)),
+                "probe": {k: float(np.asarray(getattr(probe, k))) for k in probe.parameters if hasattr(probe, k)},
+            }
+            if best is None or item["partial_r2"] > best["partial_r2"]:
+                best = item
+        out[name] = best or {"partial_r2": 0.0, "corr": 0.0, "n_eff": 0.0, "lm_stat": 0.0, "p_value": 1.0, "probe": {}}
+    return out
+
+
+# -- calibrated selection (issue 13) ------------------------------------------------------
+
+#: Defaults of the calibrated rule (see `diagnose`).  ``n_null`` is kept small on purpose (each null record costs
+#: a base refit and an effect fit); the (1 - fpr) quantile of so few null gains is estimated with a normal
+#: approximation and, in addition, the gain must exceed every null gain (an empirical rank p <= 1 / (n_null + 1)).
+CALIBRATED_DEFAULTS = {"fpr": 0.01, "n_null": 10, "n_folds": 3, "ar_max_order": 20, "ambiguity": 0.10}
+SELECTION_RULES = ("calibrated", "legacy")
+
+
+def _segment_index(record):
+    """Record indices of the segments of `whole_record_split` (one per branch, or the whole record)."""
+    if "branch" in record.extra:
+        b = np.asarray(record.extra["branch"]).astype(int)
+        return [np.flatnonzero(b == k) for k in dict.fromkeys(b.tolist())]
+    return [np.arange(len(record))]
+
+
+def fold_splits(record, n_folds=3):
+    """Cross-validation folds, each a `Split`: K contiguous time blocks, each held out in turn (the model runs
+    from t = 0 over the whole record, the other blocks train), or for a branch record the three branch residues."""
+    if "branch" in record.extra:
+        out = []
+        for r in (0, 1, 2):
+            try:
+                out.append(make_split(record, holdout_residue=r))
+            except UserInputError:  # too few branches for this residue
+                continue
+        return out
+    n = len(record)
+    if n_folds < 2 or n < 20 * n_folds:
+        raise UserInputError(f"{n_folds} folds need at least {20 * n_folds} samples (and n_folds >= 2); the record has {n}")
+    lc = load_column(record)
+    edges = np.linspace(0, n, n_folds + 1).round().astype(int)
+    full = np.arange(n)
+    out = []
+    for j in range(n_folds):
+        held = (full >= edges[j]) & (full < edges[j + 1])
+        label = f"{edges[j]}..{edges[j + 1] - 1}"
+        out.append(
+            Split(
+                "time-fold",
+                f"block {label} held out, the rest trained (model run from t = 0)",
+                [_segment(record, full, mask=~held, load_col=lc)],
+                [_segment(record, full, mask=held, load_col=lc)],
+                [f"all but {label}"],
+                [label],
+            )
+        )
+    return out
+
+
+def _ar_fit(e, max_order):
+    """AR(p) model of a residual series, p <= ``max_order`` chosen by BIC on a common sample; made stable.
+
+    Returns ``(coef, innovations, mean, spectral_radius)``; coefficients whose characteristic roots reach
+    the unit circle are shrunk (a_i -> a_i s^i) to radius 0.995, so that simulated nulls stay stationary.
+    """
+    e = np.asarray(e, float)
+    mu = float(e.mean())
+    x = e - mu
+    n = x.size
+    pmax = int(min(max_order, max(n // 10, 0)))
+    y0 = x[pmax:]
+    best = (len(y0) * np.log(max(float(np.mean(y0**2)), 1e-300)), np.zeros(0), y0)
+    for p in range(1, pmax + 1):
+        X = np.column_stack([x[pmax - i : n - i] for i in range(1, p + 1)])
+        coef, *_ = np.linalg.lstsq(X, y0, rcond=None)
+        innov = y0 - X @ coef
+        bic = len(y0) * np.log(max(float(np.mean(innov**2)), 1e-300)) + p * np.log(len(y0))
+        if bic < best[0]:
+            best = (bic, coef, innov)
+    _, coef, innov = best
+    rho = float(np.max(np.abs(np.roots(np.r_[1.0, -coef])))) if coef.size else 0.0
+    if rho >= 0.995:
+        coef = coef * (0.995 / rho) ** np.arange(1, coef.size + 1)
+        rho = 0.995
+    return coef, innov - innov.mean(), mu, rho
+
+
+def _ar_simulate(coef, innov, mu, rho, n, rng):
+    """One AR path of length ``n`` driven by innovations resampled (with replacement) from the fitted ones."""
+    from scipy.signal import lfilter
+
+    burn = int(min(20000, max(200, 10 * coef.size, 5.0 / max(1.0 - rho, 1e-3))))
+    eta = rng.choice(innov, size=n + burn, replace=True)
+    return mu + lfilter([1.0], np.r_[1.0, -coef], eta)[burn:]
+
+
+def null_records(record, split, model, n_null, rng, max_order=20):
+    """Parametric-bootstrap null records: ``model`` (fitted on the training split) simulated over the whole record
+    plus an AR(p) path fitted to its own training residuals (innovations resampled).  Returns ``(records, info)``."""
+    _, res_tr = score(model, split.train)
+    coef, innov, mu, rho = _ar_fit(res_tr, max_order)
+    full = whole_record_split(record)
+    yhat = np.empty(len(record))
+    for idx, seg in zip(_segment_index(record), full.train):
+        yhat[idx] = simulate_segment(model, seg)
+    recs = []
+    for _ in range(n_null):
+        ystar = yhat.copy()
+        for idx in _segment_index(record):
+            ystar[idx] += _ar_simulate(coef, innov, mu, rho, idx.size, rng)
+        recs.append(dataclasses.replace(record, y=ystar))
+    info = {
+        "residual_model": f"AR({coef.size}) fitted to the training residuals (BIC, order <= {max_order}), innovations resampled",
+        "ar_order": int(coef.size),
+        "ar_spectral_radius": rho,
+        "innovation_sd": float(np.std(innov)) if innov.size else 0.0,
+        "residual_sd": float(np.std(res_tr)),
+    }
+    return recs, info
+
+
+#: Nelder-Mead evaluations per nonlinear parameter when an effect is refitted on a null record (the real fit: 150).
+NULL_MAX_ITER_PER_PARAMETER = 30
+
+
+def _fit_on(name, start, split, record, *, new):
+    """Refit on another split (folds, null records).
+
+    ``new=False``: the linear EUPI gains (and linear effect gains) are re-profiled by bounded least squares with
+    the nonlinear parameters (k1, effect parameters) kept at their fitted values: one solve, cheap.
+    ``new=True``: ``start`` (a fitted model without ``name``) plus effect ``name`` from its grid of starts and a
+    Nelder-Mead search capped at ``NULL_MAX_ITER_PER_PARAMETER`` evaluations per parameter (the real fit's
+    procedure, shortened for speed).  ``nonlocal_memory``: the Preisach fit with its inner CV.
+    """
+    if name == NONLOCAL_MEMORY["name"]:
+        u = np.asarray(record.u, float)
+        return cv_fit_preisach(split.train, float(u.min()), float(u.max()), progress=False)[0]
+    if isinstance(start, Preisach):
+        return start
+    if new:
+        have = list(start.effect_names) if isinstance(start, ExtendedModel) else []
+        n_par = len(EFFECTS[name].nonlinear(_context(split))) + len(have) + (1 if isinstance(start.base, Cascade) else 0)
+        return fit_extended(start, have + [name], split, max_iter=NULL_MAX_ITER_PER_PARAMETER * max(n_par, 1))[0]
+    return profile_gains(start, split.train)[0]
+
+
+def _held(model, split):
+    te, _ = score(model, split.test)
+    return te
+
+
+def calibration_gates(
+    record,
+    split,
+    current,
+    current_te,
+    name,
+    cand,
+    cand_te,
+    *,
+    min_gain,
+    fpr,
+    n_null,
+    n_folds,
+    holdout_residue,
+    rng,
+    fold_cache,
+    max_order=20,
+    verbose=False,
+):
+    """The calibrated acceptance test of candidate ``name`` (fitted model ``cand``) against ``current``.
+
+    Gates, cheapest first (a failing gate stops the test):
+
+    1. ``gain``: held-out RMSE gain on the main split >= ``min_gain``;
+    2. ``max_error``: held-out max |error| (the numerator of e_r) not raised;
+    3. ``folds``: on each of K contiguous blocks held out in turn (branch records: the three branch residues),
+       both models refitted (linear gains re-profiled), the gain is positive in all folds or all but one, and the
+       mean fold gain is positive;
+    4. ``null``: the gain exceeds the (1 - fpr) quantile of the gains the same effect reaches on ``n_null``
+       null records simulated from ``current`` with its own residual structure (`null_records`), each refitted
+       exactly like the real record (current: warm start; effect: its grid of starts); the quantile is a normal
+       approximation (mean + z sd of the null gains) and the gain must also exceed every null gain.
+
+    Returns a JSON-ready dict: gates, per-fold gains, the null distribution and its threshold, ``accepted``.
+    """
+    from scipy import stats
+
+    base_h, base_max = current_te["rmse"], current_te["max_abs_error"]
+    gain = 1.0 - cand_te["rmse"] / base_h if base_h > 0 else 0.0
+    out = {"gain": gain, "gates": {}, "accepted": False}
+    out["gates"]["gain"] = bool(gain >= min_gain)
+    if not out["gates"]["gain"]:
+        out["reason"] = f"held-out gain {100 * gain:.1f} % < {100 * min_gain:.0f} %"
+        return out
+    out["heldout_max_abs_error"] = {"before": base_max, "after": cand_te["max_abs_error"]}
+    out["gates"]["max_error"] = bool(cand_te["max_abs_error"] <= base_max)
+    if not out["gates"]["max_error"]:
+        out["reason"] = f"raises the held-out max |error| ({base_max:.4g} -> {cand_te['max_abs_error']:.4g})"
+        return out
+    t0 = time.time()
+    folds = []
+    splits = fold_cache.setdefault("splits", fold_splits(record, n_folds))
+    steps = Steps(f"{name}: fold test", len(splits), unit="folds")
+    for j, fs in enumerate(splits):
+        key = (id(current), j)
+        if key not in fold_cache:
+            cm = _fit_on(None, current, fs, record, new=False)
+            fold_cache[key] = _held(cm, fs)
+        b = fold_cache[key]
+        c = _held(_fit_on(name, cand, fs, record, new=False), fs)
+        folds.append(
+            {
+                "heldout": fs.test_labels,
+                "rmse_before": b["rmse"],
+                "rmse_after": c["rmse"],
+                "gain": 1.0 - c["rmse"] / b["rmse"] if b["rmse"] > 0 else 0.0,
+                "max_abs_error_before": b["max_abs_error"],
+                "max_abs_error_after": c["max_abs_error"],
+            }
+        )
+        steps.advance()
+    n_pos = sum(f["gain"] > 0 for f in folds)
+    out["folds"] = folds
+    out["folds_positive"] = f"{n_pos}/{len(folds)}"
+    mean_fold = float(np.mean([f["gain"] for f in folds])) if folds else 0.0
+    out["mean_fold_gain"] = mean_fold
+    # all (or all but one) folds positive, and the one exception must not outweigh the others (mean gain > 0)
+    out["gates"]["folds"] = bool(len(folds) >= 2 and n_pos >= len(folds) - 1 and mean_fold > 0)
+    _log(f"  {name}: fold gains {[round(f['gain'], 3) for f in folds]} ({time.time() - t0:.1f} s)", verbose)
+    if not out["gates"]["folds"]:
+        out["reason"] = f"held-out gain positive in {n_pos} of {len(folds)} folds, mean fold gain {100 * mean_fold:+.1f} %"
+        return out
+    t0 = time.time()
+    recs, info = null_records(record, split, current, n_null, rng, max_order)
+    null_gains = []
+    steps = Steps(f"{name}: null records", len(recs), unit="records")
+    for r in recs:
+        ns = make_split(r, holdout_residue=holdout_residue)
+        cm = _fit_on(None, current, ns, r, new=False)
+        nm = _fit_on(name, cm, ns, r, new=True)
+        b, c = _held(cm, ns), _held(nm, ns)
+        null_gains.append(1.0 - c["rmse"] / b["rmse"] if b["rmse"] > 0 else 0.0)
+        steps.advance()
+    g = np.asarray(null_gains)
+    z = float(stats.norm.ppf(1.0 - fpr))
+    q = float(g.mean() + z * g.std(ddof=1)) if g.size > 1 else float(g.max())
+    threshold = max(q, float(g.max()))
+    out["null"] = {
+        **info,
+        "n_records": int(g.size),
+        "gains": g.tolist(),
+        "mean": float(g.mean()),
+        "sd": float(g.std(ddof=1)) if g.size > 1 else 0.0,
+        "max": float(g.max()),
+        "quantile_normal": q,
+        "fpr": fpr,
+        "threshold": threshold,
+        "p_rank": float((1 + np.sum(g >= gain)) / (g.size + 1)),
+        "seconds": time.time() - t0,
+    }
+    out["gates"]["null"] = bool(gain > threshold)
+    _log(
+        f"  {name}: gain {gain:.3f} vs null mean {g.mean():.3f}, max {g.max():.3f}, threshold {threshold:.3f} "
+        f"({time.time() - t0:.1f} s)",
+        verbose,
+    )
+    if not out["gates"]["null"]:
+        out["reason"] = (
+            f"held-out gain {100 * gain:.1f} % within the null distribution (threshold {100 * threshold:.1f} % at fpr {fpr:g}, "
+            f"{g.size} null records)"
+        )
+        return out
+    out["accepted"] = True
+    out["reason"] = "passes every gate"
+    return out
+
+
+def _select_calibrated(record, split, base, base_te, candidates, fitted, *, min_gain, max_effects, cal, holdout_residue, verbose):
+    """Calibrated selection over the fitted candidates; returns ``(selected, chosen, ambiguous)``.
+
+    Candidates are tested in order of held-out RMSE (`calibration_gates`); the best accepted one is selected;
+    other accepted ones within ``ambiguity`` (10 %) of its held-out RMSE form the ambiguous set (reported, not
+    added).  A second effect is added only if the combined model passes the same gates against the one-effect
+    model (its null records are simulated from the one-effect model).
+    """
+    rng = np.random.default_rng(cal["seed"])
+    fold_cache = {}
+    kw = dict(
+        min_gain=min_gain,
+        fpr=cal["fpr"],
+        n_null=cal["n_null"],
+        n_folds=cal["n_folds"],
+        holdout_residue=holdout_residue,
+        fold_cache=fold_cache,
+        max_order=cal["ar_max_order"],
+        verbose=verbose,
+    )
+    fitted_c = sorted((c for c in candidates if c.get("fitted")), key=lambda c: c["heldout_rmse"])
+    steps = Steps("diagnose: calibrated test", len(fitted_c), unit="effects")
+    for c in fitted_c:
+        PROGRESS.info(f"  diagnose: testing {c['name']}")
+        m = fitted[c["name"]][0]
+        c["calibration"] = calibration_gates(record, split, base, base_te, c["name"], m, _held(m, split), rng=rng, **kw)
+        c["accepted"] = c["calibration"]["accepted"]
+        steps.advance(note=f"{c['name']}: {'accepted' if c['accepted'] else 'rejected'}")
+    accepted = [c for c in fitted_c if c["accepted"]]
+    if not accepted:
+        return [], base, []
+    first = accepted[0]
+    selected, chosen = [first["name"]], fitted[first["name"]][0]
+    ambiguous = [c["name"] for c in accepted if c["heldout_rmse"] <= (1.0 + cal["ambiguity"]) * first["heldout_rmse"]]
+    cur_te = _held(chosen, split)
+    for c in accepted[1:]:
+        if len(selected) >= max_effects or isinstance(chosen, Preisach):
+            break
+        if c["name"] in ambiguous or c["name"] == NONLOCAL_MEMORY["name"]:
+            continue
+        m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
+        te2 = _held(m2, split)
+        gate = calibration_gates(record, split, chosen, cur_te, c["name"], m2, te2, rng=rng, **kw)
+        c["combined_with"] = {
+            "effects": selected + [c["name"]],
+            "heldout_rmse": te2["rmse"],
+            "calibration": gate,
+            "accepted": gate["accepted"],
+        }
+        if gate["accepted"]:
+            selected, chosen, cur_te = selected + [c["name"]], m2, te2
+    return selected, chosen, ambiguous if len(ambiguous) > 1 else []
+
+
+def _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose, sort=False):
+    """Issue-6 rule over the accepted entries (held-out gain >= min_gain and lower BIC on one split): the best one,
+    then a second added greedily if it passes the same test against the one-effect model.  Returns ``(selected, chosen)``."""
+    if sort:
+        accepted = sorted(accepted, key=lambda c: c["heldout_rmse"])
+    if not accepted:
+        return [], None
+    first = accepted[0]["name"]
+    selected, chosen = [first], fitted[first][0]
+    cur_h, cur_ic = fitted[first][1], fitted[first][2]
+    for c in accepted[1:]:
+        if len(selected) >= max_effects or isinstance(chosen, Preisach):
+            break
+        if c["name"] == NONLOCAL_MEMORY["name"]:
+            continue  # a base replacement, not an effect to add
+        m2, _ = fit_extended(chosen, selected + [c["name"]], split, verbose=verbose)
+        _, te2 = _metrics_pair(m2, split)
+        ic2 = information_criteria(m2, split.train)
+        ok = te2["rmse"] <= (1.0 - min_gain) * cur_h and ic2["bic"] < cur_ic["bic"]
+        c["combined_with"] = {
+            "effects": selected + [c["name"]],
+            "heldout_rmse": te2["rmse"],
+            "delta_bic_vs_previous": ic2["bic"] - cur_ic["bic"],
+            "accepted": bool(ok),
+        }
+        if ok:
+            selected, chosen, cur_h, cur_ic = selected + [c["name"]], m2, te2["rmse"], ic2
+    return selected, chosen
+
+
+def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
+    """The selection rule as applied, for diagnosis.json (with the legacy decision of each fitted candidate)."""
+    legacy = [c["name"] for c in candidates if c.get("legacy_accepted")]
+    extra = {} if legacy_selected is None else {"legacy_selected": legacy_selected}
+    if rule == "legacy":
+        return {
+            "rule": "legacy",
+            "description": f"held-out RMSE gain >= {100 * min_gain:g} % on one split and lower training BIC (issue 6); "
+            "no calibrated false-positive rate",
+            "legacy_accepted": legacy,
+        }
+    return {
+        "rule": "calibrated",
+        "description": (
+            f"accepted when (1) the held-out RMSE gain >= {100 * min_gain:g} %, (2) the held-out max |error| is not "
+            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds (and on average) "
+            f"({cal['n_folds']} contiguous time blocks, or the 3 branch residues), both models refitted per fold, and "
+            f"(4) the gain exceeds the (1 - fpr) quantile (normal approximation) and the maximum of the gains the same "
+            f"effect reaches on {cal['n_null']} null records (the fitted model without it plus an AR fit of its own "
+            "training residuals, refitted like the record)"
+        ),
+        "false_positive_rate": cal["fpr"],
+        "n_null_records": cal["n_null"],
+        "n_folds": cal["n_folds"],
+        "ambiguity_tolerance": cal["ambiguity"],
+        "seed": cal["seed"],
+        "note": (
+            f"{cal['n_null']} null records is a small number chosen for speed: the quantile at fpr {cal['fpr']:g} is "
+            "extrapolated from their mean and standard deviation, not counted"
+        ),
+        "legacy_accepted": legacy,
+        **extra,
+    }
+
+
+def _decisions(candidates, selected, ambiguous, rule):
+    """One plain decision per candidate, so that a report never lists several 'accepted' beside one selected."""
+    for c in candidates:
+        n = c["name"]
+        if n in selected:
+            c["decision"] = "selected" if selected[0] == n else f"selected (added to {selected[0]})"
+        elif not c.get("fitted"):
+            c["decision"] = "not fitted (" + (
+                "no score-test evidence)" if not c.get("plausible") else "ranked below max_candidates)"
+            )
+        elif c.get("accepted") and n in ambiguous:
+            c["decision"] = f"passes; ambiguous with {selected[0]} (data cannot separate them)"
+        elif c.get("accepted"):
+            c["decision"] = f"passes alone; not added ({', '.join(selected)} selected)"
+        elif rule == "calibrated":
+            c["decision"] = "rejected: " + c.get("calibration", {}).get("reason", "not accepted")
+        else:
+            c["decision"] = "rejected: held-out gain < min_gain or BIC not lower"
+
+
+# -- diagnosis -------------------------------------------------------------------------
+
+
+def _metrics_pair(model, split):
+    tr, _ = score(model, split.train)
+    te, _ = score(model, split.test)
+    return tr, te
+
+
+def diagnose(
+    record,
+    *,
+    effects=None,
+    max_candidates=3,
+    min_gain=0.05,
+    max_effects=2,
+    p_threshold=0.01,
+    holdout_residue=2,
+    refit=True,
+    verbose=True,
+    rule="calibrated",
+    fpr=CALIBRATED_DEFAULTS["fpr"],
+    n_null=CALIBRATED_DEFAULTS["n_null"],
+    n_folds=CALIBRATED_DEFAULTS["n_folds"],
+    seed=0,
+    compare_legacy=False,
+    screen=True,
+    unexplained=True,
+):
+    """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
+
+    ``screen``: the base model's output orientation, hysteresis input and thermal start are first screened
+    on the training samples as `smafl fit` does (`screened_base`); False keeps the fixed start of earlier versions.
+
+    The returned models are fitted on the training part of the split (the
+    held-out figures are theirs).  With ``refit`` the selected structure is
+    also refitted on the whole record (`refit_whole_record`): ``result["deployed"]``
+    and, for `write_diagnosis`, ``result["_deployed_models"]``.
+
+    ``rule="calibrated"`` (default, issue 13) accepts an effect only through `calibration_gates` (held-out gain
+    >= ``min_gain``, max error not raised, gain positive in all or all but one of ``n_folds`` folds, gain above
+    the (1 - ``fpr``) quantile of ``n_null`` parametric-bootstrap null records; ``seed`` seeds the nulls);
+    ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC);
+    ``compare_legacy`` also records what it would select (``result["selection"]["legacy_selected"]``).
+
+    ``unexplained`` (after the selection, never changing it): ``result["unexplained"]`` says whether the held-out
+    residual still has structure, names its strongest correlate and scores a generic, clearly labelled ridge
+    regression of the residual on the candidate signals, fitted on the training residual (`smafl_jax.diagnosis._unexplained`).
+    """
+    if rule not in SELECTION_RULES:
+        raise UserInputError(f"rule must be one of {SELECTION_RULES}, got {rule!r}")
+    if not 0.0 < fpr < 0.5:
+        raise UserInputError(f"fpr must be in (0, 0.5), got {fpr!r}")
+    if n_null < 2:
+        raise UserInputError(f"n_null must be >= 2, got {n_null!r}")
+    check_record(record)
+    t_start = time.time()
+    base0, base_rule = choose_base(record)
+    rate_free = is_rate_free(record)
+    split = make_split(record, holdout_residue=holdout_residue)
+    warnings = []
+    if effects is None:
+        names = applicable_effects(base0, split, rate_free)
+    else:
+        unknown = [n for n in effects if n not in EFFECTS and n != NONLOCAL_MEMORY["name"]]
+        if unknown:
+            raise UserInputError(f"unknown effect(s) {unknown}; catalogue: {list(EFFECTS) + [NONLOCAL_MEMORY['name']]}")
+        ok = set(applicable_effects(base0, split, rate_free))
+        names = [n for n in dict.fromkeys(effects) if n in ok]
+        for n in dict.fromkeys(effects):
+            if n not in ok and not (n == NONLOCAL_MEMORY["name"] and rate_free):
+                warnings.append(
+                    f"effect {n!r} does not apply to this record: {_not_applicable_reason(n, base0, rate_free, split)}"
+                )
+    offer_preisach = rate_free and (effects is None or NONLOCAL_MEMORY["name"] in effects)
+    if effects is not None and not names and not offer_preisach:
+        raise UserInputError("; ".join(warnings) + "; nothing left to test")
+    for w in warnings:
+        _log(f"warning: {w}", verbose)
+    _log(
+        f"diagnose: {len(record)} samples, base {type(base0).__name__}, split {split.kind}, {len(names)} applicable effects",
+        verbose,
+    )
+    k1_grid = (0.01, 0.03, 0.1, 0.3) if isinstance(base0, Cascade) else None
+    screened = None
+    if screen:
+        base0, screened = screened_base(base0, split, verbose)
+        if screened is not None:
+            k1_grid = None  # the screened k1 (searched jointly with the thermal start) is the simplex's start
+    base, base_info = fit_extended(base0, [], split, k1_grid=k1_grid, verbose=verbose)
+    base_tr, base_te = _metrics_pair(base, split)
+    base_ic = information_criteria(base, split.train)
+    _, res_tr = score(base, split.train)
+    _, res_te = score(base, split.test)
+
+    # residual diagnostics on train and held-out
+    def resid_block(segs, resid):
+        u = np.concatenate([s.u[s.mask] for s in segs])
+        out = {"whiteness": whiteness_report(resid, u)}
+        sigs = {}
+        for s in segs:
+            yh = simulate_segment(base, s)
+            x = np.asarray(base.hysteresis_input(jnp.asarray(s.u), jnp.asarray(s.dt))) if isinstance(base.base, Cascade) else None
+            cs = candidate_signals(s.time, s.u, yh, s.dt, x=x, extra=s.extra)
+            for k, v in cs.items():
+                sigs.setdefault(k, []).append(v[s.mask])
+        sigs = {k: np.concatenate(v) for k, v in sigs.items() if len(v) == len(segs)}
+        out["signal_correlations"] = signal_correlations(resid, sigs)
+        return out
+
+    residuals = {"train": resid_block(split.train, res_tr), "heldout": resid_block(split.test, res_te)}
+    evidence = effect_evidence(base, split, names, res_tr)
+    ranked = sorted(names, key=lambda n: -evidence[n]["partial_r2"])
+    plausible = [n for n in ranked if evidence[n]["p_value"] < p_threshold]
+    to_fit = plausible[:max_candidates]
+    _log(
+        "evidence ranking: "
+        + ", ".join(f"{n} (R2 {evidence[n]['partial_r2']:.3f}, p {evidence[n]['p_value']:.1e})" for n in ranked),
+        verbose,
+    )
+
+    base_h = base_te["rmse"]
+    candidates = []
+    fitted = {}
+    steps = Steps("diagnose: fitting candidate effects", len(to_fit) + int(offer_preisach), unit="effects")
+    for name in ranked:
+        entry = {"name": name, "evidence": evidence[name], "plausible": name in plausible, "fitted": name in to_fit}
+        if name in to_fit:
+            m, info = fit_extended(base, [name], split, verbose=verbose)
+            tr, te = _metrics_pair(m, split)
+            ic = information_criteria(m, split.train)
+            entry.update(
+                {
+                    "train_rmse": tr["rmse"],
+                    "heldout_rmse": te["rmse"],
+                    "heldout_e_r_percent": te["e_r_percent"],
+                    "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
+                    "delta_bic": ic["bic"] - base_ic["bic"],
+                    "delta_aic": ic["aic"] - base_ic["aic"],
+                    "added_parameters": ic["k"] - base_ic["k"],
+                    "parameters": _effect_params(m.get(name)),
+                    "fit": info,
+                }
+            )
+            entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
+            entry["legacy_accepted"] = entry["accepted"]
+            fitted[name] = (m, te["rmse"], ic)
+            steps.advance(note=name)
+        candidates.append(entry)
+    if offer_preisach:
+        entry, pm = _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose)
+        steps.advance(note=entry["name"])
+        entry["legacy_accepted"] = entry["accepted"]
+        candidates.append(entry)
+        fitted[entry["name"]] = pm
+
+    accepted = sorted([c for c in candidates if c.get("accepted")], key=lambda c: c["heldout_rmse"])
+    selected, chosen, ambiguous = [], base, []
+    cal = {**CALIBRATED_DEFAULTS, "fpr": fpr, "n_null": n_null, "n_folds": n_folds, "seed": seed}
+    if rule == "calibrated":
+        selected, chosen, ambiguous = _select_calibrated(
+            record,
+            split,
+            base,
+            base_te,
+            candidates,
+            fitted,
+            min_gain=min_gain,
+            max_effects=max_effects,
+            cal=cal,
+            holdout_residue=holdout_residue,
+            verbose=verbose,
+        )
+    elif accepted:
+        selected, chosen = _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose)
+    legacy_selected = None
+    if compare_legacy and rule == "calibrated":
+        import copy
+
+        legacy_selected = _select_legacy(
+            [copy.deepcopy(c) for c in candidates if c.get("legacy_accepted")],
+            fitted,
+            split,
+            min_gain,
+            max_effects,
+            verbose,
+            sort=True,
+        )[0]
+    _decisions(candidates, selected, ambiguous, rule)
+    ext_tr, ext_te = _metrics_pair(chosen, split)
+    _, ext_res_te = score(chosen, split.test)
+    _, ext_res_tr = score(chosen, split.train)
+
+    strongest = _strongest_correlate(
+        residuals["heldout"]["signal_correlations"] if not selected else resid_after(chosen, split, ext_res_te)
+    )
+    result = {
+        "record": {
+            "n_samples": len(record),
+            "sample_time_s": record.dt,
+            "input_column": record.input_name,
+            "output_column": record.output_name,
+            "path": record.path,
+            "sha256": record.sha256,
+        },
+        "base": {
+            "model": type(base0).__name__,
+            "rule": base_rule,
+            "rate_free": rate_free,
+            "train": base_tr,
+            "heldout": base_te,
+            "train_rmse": base_tr["rmse"],
+            "heldout_rmse": base_te["rmse"],
+            "information_criteria": base_ic,
+            "fit": base_info,
+            "start": _start_doc(base, screened),
+        },
+        "split": {
+            "kind": split.kind,
+            "rule": split.rule,
+            "train": split.train_labels,
+            "heldout": split.test_labels,
+            "coverage": split_coverage(split),
+        },
+        "residuals": residuals,
+        "applicable_effects": names,
+        "evidence_ranking": ranked,
+        "candidates": candidates,
+        "selected": selected,
+        "extended": {
+            "effects": selected,
+            "train": ext_tr,
+            "heldout": ext_te,
+            "train_rmse": ext_tr["rmse"],
+            "heldout_rmse": ext_te["rmse"],
+            "information_criteria": (
+                fitted[selected[0]][2] if isinstance(chosen, Preisach) else information_criteria(chosen, split.train)
+            ),
+            "parameters": {
+                n: (_preisach_params(fitted[n][3]) if n == NONLOCAL_MEMORY["name"] else _effect_params(chosen.get(n)))
+                for n in selected
+            },
+            "residuals_heldout": {"whiteness": whiteness_report(ext_res_te, np.concatenate([s.u[s.mask] for s in split.test]))},
+        },
+        "improvement": {
+            "heldout_rmse_ratio": ext_te["rmse"] / base_te["rmse"] if base_te["rmse"] > 0 else 1.0,
+            "heldout_rmse_reduction_percent": 100.0 * (1.0 - ext_te["rmse"] / base_te["rmse"]) if base_te["rmse"] > 0 else 0.0,
+            "heldout_e_r_before": base_te["e_r_percent"],
+            "heldout_e_r_after": ext_te["e_r_percent"],
+        },
+        "strongest_remaining_correlate": strongest,
+        "ambiguous": ambiguous,
+        "warnings": warnings,
+        "selection": _selection_doc(rule, cal, min_gain, candidates, legacy_selected),
+        "settings": {
+            "max_candidates": max_candidates,
+            "min_gain": min_gain,
+            "max_effects": max_effects,
+            "p_threshold": p_threshold,
+            "rule": rule,
+        },
+        "seconds": time.time() - t_start,
+    }
+    result["_residual_arrays"] = {
+        "base_train": res_tr,
+        "base_heldout": res_te,
+        "ext_train": ext_res_tr,
+        "ext_heldout": ext_res_te,
+    }
+    if unexplained:
+        from ._unexplained import unexplained_report
+
+        result["unexplained"], result["_residual_arrays"]["unexplained"] = unexplained_report(
+            chosen,
+            split,
+            ext_res_tr,
+            ext_res_te,
+            selected=selected,
+            whiteness=result["extended"]["residuals_heldout"]["whiteness"],
+            strongest=strongest,
+            simulate=simulate_segment,
+            min_gain=min_gain,
+        )
+        _log(f"unexplained: {result['unexplained']['verdict']}", verbose)
+    unwrapped = chosen if selected else base.base
+    if refit:
+        base_all, ext_all, info = refit_whole_record(record, base.base, unwrapped, result, verbose)
+        result["deployed"] = info
+        result["_deployed_models"] = (base_all, ext_all)
+    return result, base.base, unwrapped, split
+
+
+def _preisach_params(info):
+    return {
+        "method": info.get("method", "penalised"),
+        "n_levels": info["n_levels"],
+        "lam": info["lam"],
+        "relay_width": info.get("width", 0.0),
+        "effective_dof": info["dof"],
+        "n_nonzero_weights": info["n_nonzero"],
+    }
+
+
+def _fit_nonlocal_memory(record, split, base_h, base_ic, min_gain, verbose):
+    """Fit the Preisach replacement (inner CV on the training segments) and score it like an effect candidate."""
+    t0 = time.time()
+    u = np.asarray(record.u, float)
+    pm, info = cv_fit_preisach(split.train, float(u.min()), float(u.max()))
+    tr, te = _metrics_pair(pm, split)
+    ic = information_criteria(pm, split.train, k=info["dof"])
+    _log(
+        f"  fit nonlocal_memory (Preisach): n_levels {info['n_levels']}, {info['method']}, lam {info['lam']}, dof {info['dof']:.1f}, "
+        f"held-out RMSE {te['rmse']:.4g}, {time.time() - t0:.1f} s",
+        verbose,
+    )
+    nan = float("nan")
+    entry = {
+        "name": NONLOCAL_MEMORY["name"],
+        "base_replacement": True,
+        "plausible": True,
+        "fitted": True,
+        "evidence": {
+            "partial_r2": nan,
+            "corr": nan,
+            "n_eff": nan,
+            "lm_stat": nan,
+            "p_value": nan,
+            "probe": {},
+            "note": "base replacement (not nested in the base): no score test; always fitted on rate-free records",
+        },
+        "train_rmse": tr["rmse"],
+        "heldout_rmse": te["rmse"],
+        "heldout_e_r_percent": te["e_r_percent"],
+        "heldout_gain": 1.0 - te["rmse"] / base_h if base_h > 0 else 0.0,
+        "delta_bic": ic["bic"] - base_ic["bic"],
+        "delta_aic": ic["aic"] - base_ic["aic"],
+        "added_parameters": ic["k"] - base_ic["k"],
+        "parameters": _preisach_params(info),
+        "fit": {"inner_cv": info["inner_cv"], "cv_table": info["cv_table"], "seconds": time.time() - t0},
+    }
+    entry["accepted"] = bool(te["rmse"] <= (1.0 - min_gain) * base_h and entry["delta_bic"] < 0)
+    return entry, (pm, te["rmse"], ic, info)
+
+
+def whole_record_split(record):
+    """Every sample of ``record`` as training data (branch records: one segment per branch)."""
+    lc = load_column(record)
+    if "branch" in record.extra:
+        b = np.asarray(record.extra["branch"]).astype(int)
+        labels = list(dict.fromkeys(b.tolist()))
+        segs = [_segment(record, np.flatnonzero(b == k), load_col=lc) for k in labels]
+    else:
+        labels = [f"0..{len(record) - 1}"]
+        segs = [_segment(record, np.arange(len(record)), load_col=lc)]
+    return Split("all", "every sample (training and held-out parts together)", segs, [], labels, [])
+
+
+def refit_whole_record(record, base, ext, result, verbose=True):
+    """Deployed models: the base and the selected structure refitted on every sample of the record.
+
+    The structure (effects, or the Preisach replacement) stays as chosen on the
+    split; effect parameters restart from their split fit; the Preisach grid,
+    penalty or Everett interpolant is chosen again by its inner CV over all
+    segments.  The held-out figures of the diagnosis remain those of the
+    split fit: the deployed model has no held-out data left, and with more
+    data it is expected to predict new data at least as well (not measured
+    here).  Returns ``(base_all, ext_all, info)``.
+    """
+    t0 = time.time()
+    PROGRESS.info("  diagnose: refitting the chosen structure on the whole record")
+    full = whole_record_split(record)
+    base_all = fit_extended(base if isinstance(base, ExtendedModel) else ExtendedModel(base, ()), [], full)[0].base
+    preisach_cv = None
+    if isinstance(ext, Preisach):
+        # the grid and penalty are chosen again by the same inner CV, now over every branch: each inner fold then
+        # predicts a branch between two trained neighbours, the situation of a new branch from the same rig
+        u = np.asarray(record.u, float)
+        ext_all, pinfo = cv_fit_preisach(
+            full.train, float(u.min()), float(u.max()), linear=ext.linear, init=ext.init, ramp=bool(float(ext.width) > 0)
+        )
+        preisach_cv = {**_preisach_params(pinfo), "inner_cv": pinfo["inner_cv"], "inner_cv_rmse": pinfo["chosen"]["cv_rmse"]}
+    elif not result["selected"]:
+        ext_all = base_all
+    else:
+        ext_all = fit_extended(ext, list(ext.effect_names), full)[0]
+    wrap = lambda m: ExtendedModel(m, ()) if isinstance(m, (EUPI, Cascade)) else m
+    info = {
+        "fitted_on": full.rule,
+        "segments": full.train_labels,
+        "n_samples": int(sum(s.mask.sum() for s in full.train)),
+        "base_rmse_all": score(wrap(base_all), full.train)[0]["rmse"],
+        "extended_rmse_all": score(wrap(ext_all), full.train)[0]["rmse"],
+        "extended_parameters": (
+            _effect_params_all(ext_all, result["selected"])
+            if isinstance(ext_all, ExtendedModel)
+            else {NONLOCAL_MEMORY["name"]: preisach_cv}
+            if preisach_cv
+            else {}
+        ),
+        "seconds": time.time() - t0,
+    }
+    _log(
+        f"refit on the whole record: base RMSE {info['base_rmse_all']:.4g}, extended RMSE {info['extended_rmse_all']:.4g} "
+        f"({info['seconds']:.1f} s)",
+        verbose,
+    )
+    return base_all, ext_all, info
+
+
+def _effect_params_all(model, names):
+    return {n: _effect_params(model.get(n)) for n in names}
+
+
+def split_coverage(split, tol=0.02, warn_below=0.9):
+    """How much of the held-out part the training part has seen (input level and direction); see `data.split.coverage`."""
+    from ..data.split import coverage
+
+    return coverage(split, tol=tol, warn_below=warn_below)
+
+
+def resid_after(model, split, resid):
+    sigs = {}
+    for s in split.test:
+        yh = simulate_segment(model, s)
+        cs = candidate_signals(s.time, s.u, yh, s.dt, extra=s.extra)
+        for k, v in cs.items():
+            sigs.setdefault(k, []).append(v[s.mask])
+    sigs = {k: np.concatenate(v) for k, v in sigs.items() if len(v) == len(split.test)}
+    return signal_correlations(resid, sigs)
+
+
+def _strongest_correlate(corrs):
+    if not corrs:
+        return None
+    name = max(corrs, key=lambda k: abs(corrs[k]["corr"]))
+    return {"signal": name, **corrs[name]}
+
+
+def _effect_params(e):
+    if e is None:
+        return {}
+    return {k: float(np.asarray(getattr(e, k))) for k in e.parameters if hasattr(e, k)}
+
+
+# -- synthetic records with an undeclared effect (tests, experiments) ------------------
+
+
+def synthetic_effect_record(truth, drives, effect, seed, *, dt=0.5, noise_sd=0.003, order=("steps", "main_loop", "minor_loop")):
+    """Record from the true cascade plus one effect (``effect=None``: none), seeded; returns ``(Record, true_model)``.
+
+    ``drives`` is ``datasets/generate.py``'s ``drives()`` dict; the drives are
+    concatenated in ``order`` (all start and end at 0 V).
+    """
+    from ..data._data import Record
+
+    rng = np.random.default_rng(seed)
+    u = np.concatenate([np.asarray(drives[k][1], float) for k in order])
+    t = np.arange(u.size) * dt
+    y_base = np.asarray(_sim(ExtendedModel(truth, ()), jnp.asarray(u), jnp.asarray(dt), None))
+    lo, hi = float(y_base.min()), float(y_base.max())
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    extra, load = {}, None
+    if effect is None:
+        eff = None
+    else:
+        ctx = {"dt": dt, "n": u.size, "y_lo": lo, "y_hi": hi, "sign": sign}
+        eff, extra = _effect_class(effect).synthesise(rng, ctx)
+        lc = next((k for k in extra if any(n in k.lower() for n in LOAD_NAMES)), None)
+        load = None if lc is None else extra[lc]
+    true = ExtendedModel(truth, () if eff is None else (eff,))
+    y = np.asarray(_sim(true, jnp.asarray(u), jnp.asarray(dt), None if load is None else jnp.asarray(load)))
+    y = y + noise_sd * rng.standard_normal(y.shape)
+    rec = Record.from_arrays(t, u, y, input_name="voltage_V", output_name="displacement_mm", extra=extra)
+    return rec, true

@@ -1,0 +1,602 @@
+"""Identification: profiled (variable-projection) initialiser + joint gradient-based refinement.
+
+Two stages:
+
+1. Initialiser.  For fixed thermal parameters, thresholds and tilts the EUPI
+   is linear in its gains, so the paper's constrained least squares (play
+   gains >= 0, polynomial and offset free) is solved exactly by bounded-variable
+   least squares (`init_linear`, scipy ``lsq_linear(method="bvls")``).  When the
+   model also has a thermal time constant to identify (`Cascade`, `JouleLag`),
+   the gains are *profiled out*: the loss at the best gains is a function of
+   ``k1`` alone.  It is evaluated on a log-spaced grid of ``k1`` candidates
+   (the multi-start; the features of all candidates come from one `vmap` over
+   the thermal scan) and the best candidate is refined by a bounded 1-D search
+   (Brent) on ``log k1``.  For the default trainable set (``k1`` + gains) this
+   *is* the joint least-squares optimum, with the sign constraints exact.
+2. Joint refinement of every trainable leaf (thresholds and tilts optionally)
+   through the scan, by optimistix (Levenberg-Marquardt, Gauss-Newton, BFGS;
+   positivity by softplus reparametrisation inside the residual function) or
+   jaxopt (L-BFGS-B with bounds, projected gradient; positivity by bounds in
+   physical coordinates).  Default: ``"lm"``.
+
+Failure story: a non-finite model output at the start raises `UserInputError`
+naming the record and sample; a refinement that produces NaN/inf, or ends worse
+than its start, is discarded (the initialiser's model is kept) and
+``FitResult.message`` says so.  Nothing is random: equal inputs give bitwise
+equal results.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from typing import Any, NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .. import _config  # noqa: F401
+from .._errors import UserInputError
+from .._progress import count_step
+from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
+from ..models._hysteresis import hysteresis_of
+from ..models._joule_lag import JouleLag
+from ..models._thermal import JouleThermal
+
+__all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
+
+
+class FitResult(NamedTuple):
+    """Outcome of `fit`: the physical model and how the solver got there."""
+
+    model: Any
+    loss: float  # 0.5 * sum of (weighted) squared residuals over all records
+    n_steps: int
+    converged: bool
+    message: str
+    solver: str
+    init_loss: float = float("nan")  # loss after the initialiser, before the joint refinement
+    info: dict | None = None  # stage details: profile grid, timings
+
+
+def as_fit_data(data, dt=None):
+    """Normalise fit data to a tuple of ``(u, y, dt)`` float64 numpy triples.
+
+    Accepts a `Record`, a sequence of `Record`, a ``(u, y)`` pair with ``dt``,
+    or a sequence of ``(u, y, dt)`` triples.
+    """
+    from ..data._data import Record
+
+    if isinstance(data, Record):
+        data = [data]
+    elif isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], (tuple, list, Record)) and np.ndim(data[0]) == 1:
+        data = [(data[0], data[1], dt)]
+    out = []
+    for i, item in enumerate(data):
+        if isinstance(item, Record):
+            if item.y is None:
+                raise UserInputError(f"record {i} ({item.name}) has no output column to fit")
+            u, y, d = item.u, item.y, item.dt
+        else:
+            u, y, d = item if len(item) == 3 else (*item, dt)
+        u = np.asarray(u, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if u.ndim != 1 or u.shape != y.shape:
+            raise UserInputError(f"fit data {i}: input and output must be 1-D of equal length, got {u.shape} and {y.shape}")
+        if u.shape[0] < 3:
+            raise UserInputError(f"fit data {i}: need at least 3 samples, got {u.shape[0]}")
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+            raise UserInputError(f"fit data {i}: non-finite values in input or output")
+        d = 1.0 if d is None else float(d)
+        if not d > 0:
+            raise UserInputError(f"fit data {i}: sample time must be > 0, got {d}")
+        out.append((u, y, d))
+    if not out:
+        raise UserInputError("no data to fit")
+    return tuple(out)
+
+
+def _as_weights(weights, data):
+    """Per-record 0/1 (or any >= 0) sample weights; None -> all ones."""
+    if weights is None:
+        return tuple(np.ones(u.shape[0]) for u, _, _ in data)
+    if isinstance(weights, np.ndarray) and len(data) == 1 and weights.ndim == 1:
+        weights = [weights]
+    weights = list(weights)
+    if len(weights) != len(data):
+        raise UserInputError(f"got {len(weights)} weight arrays for {len(data)} records")
+    out = []
+    for i, (w, (u, _, _)) in enumerate(zip(weights, data)):
+        w = np.ones(u.shape[0]) if w is None else np.asarray(w, dtype=np.float64)
+        if w.shape != u.shape:
+            raise UserInputError(f"weights {i}: shape {w.shape} does not match the record's {u.shape}")
+        if not np.all(np.isfinite(w)) or np.any(w < 0):
+            raise UserInputError(f"weights {i}: must be finite and >= 0")
+        out.append(w)
+    if sum(float(np.sum(w > 0)) for w in out) < 3:
+        raise UserInputError("fewer than 3 samples carry weight; nothing to fit (check the train/validation split)")
+    return tuple(out)
+
+
+# -- model structure -------------------------------------------------------------
+
+
+def _lag_unit(thermal, u, dt):
+    """Joule lag of ``U^2`` with unit static gain (the column that multiplies ``k2/k1``)."""
+    return JouleThermal(k1=thermal.k1, k2=thermal.k1, init=thermal.init, u0=thermal.u0).simulate(u, dt)
+
+
+def _lag_features(m, u, dt):
+    lag = _lag_unit(m.thermal, u, dt)
+    return jnp.stack([lag, jnp.ones_like(lag)], axis=1)
+
+
+def _lag_set_weights(m, theta):
+    g = jnp.maximum(jnp.asarray(theta[0]), POSITIVE_FLOOR)
+    return eqx.tree_at(lambda x: (x.thermal.k2, x.offset), m, (g * m.thermal.k1, jnp.asarray(theta[1])))
+
+
+def _hysteresis_features(m, u, dt):
+    return m.features(u, dt)
+
+
+def _hysteresis_set_weights(m, theta):
+    return m.with_hysteresis(m.hysteresis.with_linear_weights(theta))
+
+
+def _linear_part(model):
+    """``(features(model, u, dt), nonneg mask, with_weights(model, theta))`` or None.
+
+    The model's output is ``features @ theta`` for fixed nonlinear parameters: a `JouleLag`, or any
+    model with a hysteresis part (`smafl_jax.models._hysteresis`) whose output is linear in its weights.
+    Module-level functions, so jitted callers compile once per shape.
+    """
+    if isinstance(model, JouleLag):
+        return _lag_features, np.array([True, False]), _lag_set_weights
+    h = hysteresis_of(model)
+    if h is None or not model.linear_in_weights:
+        return None
+    return _hysteresis_features, np.asarray(h.nonnegative_columns()), _hysteresis_set_weights
+
+
+def _has_k1(model):
+    return isinstance(getattr(model, "thermal", None), JouleThermal)
+
+
+def _set_k1(model, k1):
+    return eqx.tree_at(lambda m: m.thermal.k1, model, jnp.asarray(k1, dtype=jnp.float64))
+
+
+def default_trainable(model, *, thresholds=False, tilts=False):
+    """PyTree of bools: train thermal k1 and the hysteresis weights, keep grids (EUPI: optionally train them).
+
+    The hysteresis part says which of its fields stay fixed (`AbstractHysteresis.fixed_fields`);
+    ``thresholds`` / ``tilts`` name its optional trainable groups.
+
+    In a `Cascade` the hysteresis sees ``sqrt(theta k1 / k2)`` and ``theta`` is
+    proportional to ``k2``, so the displacement does not depend on ``k2`` at all:
+    it is structurally unidentifiable from input/displacement data and is held
+    fixed.  ``k2`` (with ``k1``) is identified by fitting the `JouleLag`
+    model (`JouleThermal` + offset) alone, as the paper does (eq. 7).
+    """
+    if hasattr(model, "trainable_spec"):  # a composite model that states its own rule (`ExtendedModel`); no load signal here
+        return model.trainable_spec(load=False)
+    spec = jax.tree_util.tree_map(eqx.is_inexact_array, model)
+    h = hysteresis_of(model)
+    if _has_k1(model) and h is not None:
+        spec = eqx.tree_at(lambda s: s.thermal.k2, spec, False)
+    if h is not None:
+        train = [g for g, on in (("thresholds", thresholds), ("tilts", tilts)) if on]
+        fixed = h.fixed_fields(train)
+        spec = eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fixed], spec, [False] * len(fixed))
+    return spec
+
+
+# -- stage 1: linear / profiled initialiser ----------------------------------------
+
+
+def _bvls(A, b, nonneg):
+    """Bounded LS ``min |A x - b|`` with ``x[nonneg] >= 0``: `smafl_jax.identify.linear.solve`; returns ``(x, loss)``.
+
+    Column-scaled, Cholesky-reduced BVLS; operators the training samples never moved get gain 0
+    (``drop_constant``); ``jitter_of="trace"`` and ``rhs="transpose"`` keep the fit's earlier numbers exactly.
+    """
+    from .linear import solve
+
+    sol = solve(A, b, nonneg, jitter=1e-13, jitter_of="trace", rhs="transpose", drop_constant=True)
+    return sol.x, sol.loss
+
+
+def _stack_rows(blocks, data, weights):
+    """Weighted, zero-weight-rows-dropped design matrix and target over all records."""
+    rows, targets = [], []
+    for A, (_, y, _), w in zip(blocks, data, weights):
+        keep = w > 0
+        sw = np.sqrt(w[keep])
+        rows.append(np.asarray(A)[keep] * sw[:, None])
+        targets.append(y[keep] * sw)
+    return np.concatenate(rows), np.concatenate(targets)
+
+
+@eqx.filter_jit
+def _features(feats, model, u, dt):
+    return feats(model, u, dt)
+
+
+@eqx.filter_jit
+def _features_k1_grid(feats, model, k1s, u, dt):
+    # one vmap over the thermal + operator scans for all k1 candidates
+    return jax.vmap(lambda k: feats(_set_k1(model, k), u, dt))(k1s)
+
+
+def _check_finite_features(A, i, u):
+    A = np.asarray(A)
+    if np.all(np.isfinite(A)):
+        return
+    k = int(np.flatnonzero(~np.all(np.isfinite(A), axis=1))[0])
+    raise UserInputError(
+        f"record {i}: the model is not finite at sample {k} (input {u[k]:.6g}) at the initial parameters; "
+        "is the input far outside the range the model was built for?"
+    )
+
+
+def init_linear(model, data, dt=None, *, weights=None):
+    """Paper's constrained least squares for the linear gains, other parameters fixed.
+
+    Returns a copy of ``model`` with the hysteresis weights (or, for `JouleLag`, the
+    static gain and offset) replaced by the bounded least-squares solution
+    (play-operator gains >= 0).
+    """
+    data = as_fit_data(data, dt)
+    if isinstance(weights, np.ndarray) and weights.ndim == 1:  # one array over the concatenated rows
+        weights = (
+            np.split(weights, np.cumsum([u.shape[0] for u, _, _ in data])[:-1])
+            if weights.shape[0] == sum(u.shape[0] for u, _, _ in data)
+            else [weights]
+        )
+    weights = _as_weights(weights, data)
+    part = _linear_part(model)
+    if part is None:
+        raise UserInputError(
+            f"init_linear needs a model linear in its hysteresis weights (or a JouleLag), got {type(model).__name__}"
+        )
+    feats, nonneg, setw = part
+    blocks = []
+    for i, (u, _, d) in enumerate(data):
+        A = _features(feats, model, jnp.asarray(u), jnp.asarray(d))
+        _check_finite_features(A, i, u)
+        blocks.append(A)
+    A, b = _stack_rows(blocks, data, weights)
+    theta, _ = _bvls(A, b, nonneg)
+    return setw(model, jnp.asarray(theta))
+
+
+def _default_k1_grid(data, n):
+    """Log-spaced k1 candidates: time constants from dt/5 to 5x the longest record."""
+    dt_min = min(d for _, _, d in data)
+    t_max = max(d * u.shape[0] for u, _, d in data)
+    return np.geomspace(0.2 / t_max, 5.0 / dt_min, int(n))
+
+
+def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True, progress=False):
+    """Variable-projection initialiser: best ``k1`` with the gains profiled out by BVLS.
+
+    ``k1_grid`` is a number of log-spaced candidates (see `_default_k1_grid`) or
+    an explicit array; the model's own ``k1`` is always tried as well.  Returns
+    ``(model, info)`` with the grid, the profiled loss on it and the refined k1.
+    """
+    data = as_fit_data(data, dt)
+    weights = _as_weights(weights, data)
+    part = _linear_part(model)
+    if part is None or not _has_k1(model):
+        raise UserInputError(f"init_profile needs a model with a thermal k1 and linear gains, got {type(model).__name__}")
+    feats, nonneg, setw = part
+    grid = _default_k1_grid(data, k1_grid) if np.ndim(k1_grid) == 0 else np.asarray(k1_grid, dtype=np.float64)
+    grid = np.unique(np.concatenate([grid, [float(model.thermal.k1)]]))
+    if not np.all(np.isfinite(grid)) or np.any(grid <= 0):
+        raise UserInputError("k1 candidates must be finite and > 0")
+    n_rows = sum(u.shape[0] for u, _, _ in data)
+    n_cols = int(np.shape(feats(model, jnp.zeros(3), jnp.asarray(1.0)))[1])
+    # chunk the vmapped grid so the stacked design matrices stay under ~64 MB
+    chunk = int(max(1, min(grid.size, (64 << 20) // (8 * n_rows * n_cols))))
+    t0 = time.perf_counter()
+    losses = np.full(grid.size, np.inf)
+    for start in range(0, grid.size, chunk):
+        ks = grid[start : start + chunk]
+        if ks.size < chunk:  # pad so every chunk has one shape (one compile)
+            ks = np.concatenate([ks, np.full(chunk - ks.size, ks[-1])])
+        blocks = [
+            np.asarray(_features_k1_grid(feats, model, jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d))) for u, _, d in data
+        ]
+        for j in range(min(chunk, grid.size - start)):
+            A, b = _stack_rows([blk[j] for blk in blocks], data, weights)
+            if np.all(np.isfinite(A)):
+                losses[start + j] = _bvls(A, b, nonneg)[1]
+        if progress:
+            print(f"  profile: {min(start + chunk, grid.size)}/{grid.size} k1 candidates", file=sys.stderr)
+    if not np.any(np.isfinite(losses)):
+        raise UserInputError("the model output is not finite for any k1 candidate; check the input units and range")
+
+    def profiled(log_k1):
+        m = _set_k1(model, np.exp(log_k1))
+        blocks = [_features(feats, m, jnp.asarray(u), jnp.asarray(d)) for u, _, d in data]
+        A, b = _stack_rows(blocks, data, weights)
+        if not np.all(np.isfinite(A)):
+            return np.inf, None
+        return _bvls(A, b, nonneg)[::-1]
+
+    best = int(np.argmin(losses))
+    log_k1 = float(np.log(grid[best]))
+    n_eval = 0
+    if refine and 0 < best < grid.size - 1:
+        from scipy.optimize import minimize_scalar
+
+        res = minimize_scalar(
+            lambda x: profiled(x)[0],
+            bounds=(np.log(grid[best - 1]), np.log(grid[best + 1])),
+            method="bounded",
+            options={"xatol": 1e-7},
+        )
+        n_eval = int(res.nfev)
+        if res.fun <= losses[best]:
+            log_k1 = float(res.x)
+    loss, theta = profiled(log_k1)
+    k1 = float(np.exp(log_k1))
+    fitted = setw(_set_k1(model, k1), jnp.asarray(theta))
+    info = {
+        "k1_grid": grid.tolist(),
+        "profile_loss": losses.tolist(),
+        "k1": k1,
+        "loss": float(loss),
+        "at_grid_edge": bool(best in (0, grid.size - 1)),
+        "n_refine_evals": n_eval,
+        "seconds": time.perf_counter() - t0,
+    }
+    return fitted, info
+
+
+# -- stage 2: joint refinement -------------------------------------------------------
+
+from .._choices import SOLVERS  # noqa: E402  (defined there so `smafl fit --help` stays light)
+
+
+def _residuals(model, args):
+    return jnp.concatenate([jnp.sqrt(w) * (model.simulate(u, d) - y) for u, y, d, w in args])
+
+
+_residuals_jit = eqx.filter_jit(_residuals)
+
+
+def _make_optx_solver(name, rtol, atol):
+    if name == "lm":
+        return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+    if name == "gauss_newton":
+        return optx.GaussNewton(rtol=rtol, atol=atol)
+    if name == "bfgs":
+        return optx.BFGS(rtol=rtol, atol=atol)
+    raise UserInputError(f"unknown solver {name!r}; choose one of {SOLVERS}")
+
+
+#: Solvers whose steps `_solve_optx` counts for the progress estimate.
+_COUNTED = ("lm", "gauss_newton", "bfgs")
+
+
+@eqx.filter_jit
+def _solve_optx(solver, raw_train, static, args, max_steps):
+    def fn(p, a):
+        jax.debug.callback(count_step)  # one per residual evaluation ~ one per step: progress with an estimate
+        return _residuals(constrain(eqx.combine(p, static)), a)
+
+    if isinstance(solver, optx.AbstractMinimiser):
+        sol = optx.minimise(lambda p, a: 0.5 * jnp.sum(fn(p, a) ** 2), solver, raw_train, args, max_steps=max_steps, throw=False)
+    else:
+        sol = optx.least_squares(fn, solver, raw_train, args, max_steps=max_steps, throw=False)
+    loss = 0.5 * jnp.sum(fn(sol.value, args) ** 2)
+    ok = sol.result == optx.RESULTS.successful
+    return sol.value, ok, sol.stats["num_steps"], loss
+
+
+@eqx.filter_jit
+def _solve_jaxopt(name, params, static, bounds, args, max_steps, tol):
+    import jaxopt
+    from jaxopt.projection import projection_box
+
+    def loss(p):
+        return 0.5 * jnp.sum(_residuals(eqx.combine(p, static), args) ** 2)
+
+    if name == "lbfgsb":
+        solver = jaxopt.LBFGSB(fun=loss, maxiter=max_steps, tol=tol)
+        sol = solver.run(params, bounds=bounds)
+    else:
+        solver = jaxopt.ProjectedGradient(fun=loss, projection=projection_box, maxiter=max_steps, tol=tol)
+        sol = solver.run(params, hyperparams_proj=bounds)
+    n = sol.state.iter_num
+    return sol.params, n < max_steps, n, loss(sol.params)
+
+
+def _lift_zero_gains(model, spec, profiled):
+    """Give exact-zero play gains a small positive value so a refinement can move them.
+
+    BVLS returns exact zeros; in softplus coordinates those sit at
+    ``softplus^-1(1e-10)`` where the gradient is ~1e-10, i.e. pinned.  That is
+    right after the k1 profile when only ``k1`` and the gains are trained (the
+    zeros are then part of the joint optimum, by the KKT conditions of the
+    profiled problem), but pins them for good when the start is not that
+    optimum (a BVLS at some other k1, or thresholds / tilts that move): an
+    operator switched off at the start k1 could never switch back on (seen:
+    LM from the paper's k1 stalled at 27x the loss scipy reached).  Then they
+    start at 1e-4 of the largest gain instead.
+    """
+    h = hysteresis_of(model)
+    if h is None:
+        return model
+    hs = spec.hysteresis
+    linear = set(h.linear_fields())
+    grids = any(
+        bool(np.any(getattr(hs, f.name)))
+        for f in dataclasses.fields(h)
+        if f.name not in linear and eqx.is_array(getattr(h, f.name))
+    )
+    k1 = _has_k1(model) and bool(spec.thermal.k1)
+    if not (grids or (k1 and not profiled)):
+        return model
+    theta, nonneg = h.linear_weights(), np.asarray(h.nonnegative_columns())
+    floor = 1e-4 * float(jnp.max(jnp.abs(theta[nonneg]), initial=0.0))
+    return model.with_hysteresis(h.with_linear_weights(jnp.where(nonneg, jnp.maximum(theta, floor), theta)))
+
+
+def _finite_tree(tree):
+    return all(bool(np.all(np.isfinite(np.asarray(x)))) for x in jax.tree_util.tree_leaves(tree) if eqx.is_array(x))
+
+
+def _refine(model, spec, args, solver, max_steps, rtol, atol):
+    """Joint refinement; returns ``(model, loss, n_steps, ok)``."""
+    if solver in ("lm", "gauss_newton", "bfgs"):
+        raw_train, static = eqx.partition(unconstrain(model), spec)
+        value, ok, n, loss = _solve_optx(_make_optx_solver(solver, rtol, atol), raw_train, static, args, max_steps)
+        fitted = constrain(eqx.combine(value, static))
+    elif solver in ("lbfgsb", "projected_gradient"):
+        params, static = eqx.partition(model, spec)
+        pos = eqx.filter(positive_mask(model), spec)
+        lo = jax.tree_util.tree_map(lambda p, m: jnp.full_like(p, POSITIVE_FLOOR if m else -jnp.inf), params, pos)
+        hi = jax.tree_util.tree_map(lambda p: jnp.full_like(p, jnp.inf), params)
+        value, ok, n, loss = _solve_jaxopt(solver, params, static, (lo, hi), args, max_steps, atol)
+        fitted = eqx.combine(value, static)
+    else:
+        raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    return fitted, float(loss), int(n), bool(ok)
+
+
+_INITS = ("auto", "profile", "linear", None)
+
+
+def fit(
+    model,
+    data,
+    dt=None,
+    *,
+    solver="lm",
+    trainable=None,
+    init="auto",
+    max_steps=300,
+    rtol=1e-6,
+    atol=1e-9,
+    weights=None,
+    k1_grid=32,
+    progress=False,
+):
+    """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
+
+    ``init``: ``"profile"`` (variable projection over thermal ``k1``, see
+    `init_profile`), ``"linear"`` (BVLS gains at the current thermal
+    parameters), ``None`` (start from ``model`` as given) or ``"auto"``
+    (profile when a thermal ``k1`` is trainable, else linear).  ``solver`` is
+    one of `SOLVERS`, or None to stop after the initialiser; ``max_steps=0``
+    does the same.  ``weights``: per-record sample weights (0 = held out, e.g.
+    a validation mask; the model still runs through those samples so its
+    memory stays continuous).  ``trainable`` defaults to
+    `default_trainable(model)`.
+    """
+    if init not in _INITS:
+        raise UserInputError(f"init must be one of {_INITS}, got {init!r}")
+    if solver is not None and solver not in SOLVERS:
+        raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    if not (isinstance(max_steps, (int, np.integer)) and max_steps >= 0):
+        raise UserInputError(f"max_steps must be an integer >= 0, got {max_steps!r}")
+    data = as_fit_data(data, dt)
+    weights = _as_weights(weights, data)
+    spec = default_trainable(model) if trainable is None else trainable
+    say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: None)
+    info = {}
+    t0 = time.perf_counter()
+    k1_trainable = _has_k1(model) and bool(spec.thermal.k1)
+    if init == "auto":
+        init = (
+            "profile"
+            if (k1_trainable and _linear_part(model) is not None)
+            else ("linear" if _linear_part(model) is not None else None)
+        )
+    if init == "profile":
+        say(f"initialiser: profiling k1 ({k1_grid if np.ndim(k1_grid) == 0 else len(k1_grid)} candidates, gains by bounded LS)")
+        model, info["profile"] = init_profile(model, data, weights=weights, k1_grid=k1_grid, progress=progress)
+    elif init == "linear":
+        say("initialiser: bounded least squares for the gains")
+        model = init_linear(model, data, weights=list(weights))
+    info["init"] = init
+    info["init_seconds"] = time.perf_counter() - t0
+    args = tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d), jnp.asarray(w)) for (u, y, d), w in zip(data, weights))
+    res0 = np.asarray(_residuals_jit(model, args))
+    if not np.all(np.isfinite(res0)):
+        k = int(np.flatnonzero(~np.isfinite(res0))[0])
+        raise UserInputError(
+            f"the model output is not finite at the start of the fit (sample {k} of the concatenated records); "
+            "check the input units against the model's range and the initial parameters"
+        )
+    init_loss = 0.5 * float(res0 @ res0)
+    if solver is None or max_steps == 0:
+        info["total_seconds"] = time.perf_counter() - t0
+        return FitResult(model, init_loss, 0, True, f"initialiser only ({init})", "none", init_loss, info)
+    start = _lift_zero_gains(model, spec, profiled=init == "profile")
+    say(f"joint refinement: {solver}, up to {max_steps} steps")
+    t1 = time.perf_counter()
+    from .._progress import heartbeat
+
+    with heartbeat(f"joint refinement ({solver})", enabled=progress, max_steps=max_steps if solver in _COUNTED else None):
+        fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
+    info["refine_seconds"] = time.perf_counter() - t1
+    info["total_seconds"] = time.perf_counter() - t0
+    finite = np.isfinite(loss) and _finite_tree(fitted)
+    if not finite:
+        message = (
+            f"joint refinement ({solver}) diverged: the loss or a parameter became NaN/inf after {n_steps} steps "
+            f"(a step left the region where the model is finite); kept the initialiser's model (loss {init_loss:.6g})"
+        )
+        return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)
+    # "worse" beyond round-off: relative to the start loss and to the signal energy (exact fits end near 0)
+    energy = 0.5 * sum(float(np.sum(w * y * y)) for (_, y, _), w in zip(data, weights))
+    if loss > init_loss * (1 + 1e-9) + 1e-13 * energy:
+        message = (
+            f"joint refinement ({solver}) ended worse than its start (loss {loss:.10g} > {init_loss:.10g}); "
+            "kept the initialiser's model"
+        )
+        return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)
+    message = (
+        "converged" if ok else f"{solver} stopped after {n_steps} steps without meeting its tolerance (max_steps={max_steps})"
+    )
+    return FitResult(fitted, loss, n_steps, ok, message, solver, init_loss, info)
+
+
+def fit_many(model, datasets, *, weights=None, progress=True, names=None, **kwargs):
+    """Fit one model template to many records or actuators; returns a list of `FitResult` (or the error).
+
+    Each entry of ``datasets`` is anything `fit` accepts for one actuator.
+    Records of one shape reuse the same compiled code (one compile per
+    shape); the k1 profile inside each fit is one `vmap` over candidates.
+    A record that cannot be fitted gives its `UserInputError` in the list
+    instead of stopping the batch.  Progress goes to stderr.
+    """
+    datasets = list(datasets)
+    weights = [None] * len(datasets) if weights is None else list(weights)
+    names = [f"#{i}" for i in range(len(datasets))] if names is None else list(names)
+    out = []
+    t0 = time.perf_counter()
+    for i, (d, w, name) in enumerate(zip(datasets, weights, names)):
+        try:
+            r = fit(model, d, weights=w, **kwargs)
+        except UserInputError as exc:
+            r = exc
+        out.append(r)
+        if progress:
+            status = f"loss {r.loss:.4g}, {r.message}" if isinstance(r, FitResult) else f"failed: {r}"
+            el = time.perf_counter() - t0
+            print(f"[{i + 1}/{len(datasets)}] {name}: {status} ({el:.1f} s elapsed)", file=sys.stderr)
+    return out
+
+
+def replace(model, **changes):
+    """Functional field update for model PyTrees (thin wrapper over dataclasses.replace)."""
+    return dataclasses.replace(model, **changes)

@@ -1,0 +1,577 @@
+"""Several records, one model: joint fit, leave-one-record-out validation, baselines and data checks.
+
+`fit_records` fits one model to several records at once (each record runs
+from its own initial state; `smafl_jax.fit` takes the list) with the same
+model choice as `fit_record` (structure, start screening, trainable set).
+With two or more records it validates by leave-one-record-out (LORO): fold i
+refits on all records but i, from scratch (the start model is built on the
+training records' input range only), and scores record i whole, simulated
+from its own first sample.  The two baselines of `smafl_jax.identify._baselines` are
+fitted and scored on the same folds.  The headline is the mean over folds of
+the held-out RMSE and e_r (eq. 3, per held-out record's output range); the
+model that is kept and written is the joint fit on all records.  The
+verdict against a baseline (`loro_sentences`) needs both a lower mean RMSE
+and a lower RMSE on more than half of the held-out records, so that one badly
+predicted record (input spikes, an odd run) cannot decide it either way.
+
+Also here: the data-check section of a fit (`data_checks_doc`,
+`data_checks_markdown`; the checks are those of `smafl check`) and
+`add_record_extras`, which adds baselines, data checks, loading notes and the
+training input range to a one-record fit.json.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import UserInputError
+from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
+from ._baselines import TITLES as BASELINE_TITLES
+from ._metrics import metrics
+
+__all__ = ["fit_records", "write_records_outputs", "data_checks_doc", "data_checks_markdown", "add_record_extras"]
+
+log = logging.getLogger(__name__)
+
+
+def _axis_label(name, units):
+    from ..report._reportdoc import axis_label
+
+    return axis_label(name, units)
+
+
+#: Findings listed one by one in a report; the rest are counted (all are in fit.json).
+MAX_FINDING_LINES = 20
+#: Options of `fit_record` that `fit_records` takes (``split``: ``"auto"`` = LORO with >= 2 records, ``"none"`` = no LORO).
+FIT_OPTIONS = (
+    "split",
+    "val_fraction",
+    "solver",
+    "max_steps",
+    "thresholds",
+    "tilts",
+    "grid",
+    "orientation",
+    "thermal_start",
+    "sees",
+)
+
+
+# -- data checks ------------------------------------------------------------------------
+
+
+def data_checks_doc(records) -> dict:
+    """fit.json ``"data_checks"``: the findings of `smafl_jax.data.check_records` (rules there), with counts."""
+    from ..data.checks import check_records
+
+    recs = [records] if hasattr(records, "u") else list(records)
+    findings = check_records(recs)
+    return {
+        "rule": "smafl_jax.data.checks (as `smafl check`); nothing was changed in the data because of a finding",
+        "n_findings": len(findings),
+        "counts": dict(Counter(f.kind for f in findings)),
+        "findings": [f.to_dict() for f in findings],
+    }
+
+
+def data_checks_markdown(dc: dict | None) -> list[str]:
+    """Report lines for the data-check section."""
+    if dc is None:
+        return []
+    lines = ["", "## Data checks", ""]
+    if not dc["n_findings"]:
+        return lines + ["No findings (offset jumps, spikes, flat or clipped stretches, sampling, levels across records)."]
+    counts = ", ".join(f"{n} {k}" for k, n in sorted(dc["counts"].items()))
+    lines += [f"{dc['n_findings']} finding(s): {counts}. Nothing was changed; the suggested actions are the user's call.", ""]
+    for f in dc["findings"][:MAX_FINDING_LINES]:
+        t0, t1 = f["time_s"]
+        size = "" if f["size"] is None else f", size {f['size']:+.4g}"
+        lines.append(
+            f"- `{f['record']}` **{f['kind']}** [{f['column']}] t {t0:.6g}-{t1:.6g} s{size} -> {f['action']}: {f['message']}"
+        )
+    if dc["n_findings"] > MAX_FINDING_LINES:
+        lines.append(f"- ... and {dc['n_findings'] - MAX_FINDING_LINES} more (all in fit.json)")
+    return lines
+
+
+def _input_range(records, masks=None) -> list[float]:
+    masks = masks or [None] * len(records)
+    u = np.concatenate([np.asarray(r.u)[m] if m is not None else np.asarray(r.u) for r, m in zip(records, masks)])
+    return [float(np.min(u)), float(np.max(u))]
+
+
+def add_record_extras(doc: dict, record, train: np.ndarray, val: np.ndarray, yhat: np.ndarray) -> dict:
+    """Add to a one-record fit.json: training input range, loading notes, baselines and data checks (in place)."""
+    doc["data"]["input_range"] = _input_range([record], [train])
+    doc["data"]["input_range_rule"] = "min and max of the input over the training samples (the range the model was fitted on)"
+    doc["data"]["processing"] = list(getattr(record, "processing", ()) or ())
+    model_val = doc["metrics"].get("validation")
+    doc["baselines"] = baselines_doc(
+        [record], [train], [record], [val], squared=is_voltage(record.input_name, record.units), model_heldout=model_val
+    )
+    doc["baselines"]["heldout_kind"] = "the fit's validation samples"
+    doc["data_checks"] = data_checks_doc([record])
+    return doc
+
+
+# -- joint fit --------------------------------------------------------------------------
+
+
+def _combined(records):
+    """One record holding all samples back to back: only for the model choice and its input range (never simulated)."""
+    cat = lambda xs: np.concatenate([np.asarray(x, dtype=np.float64) for x in xs])
+    return dataclasses.replace(
+        records[0],
+        time=np.arange(sum(len(r) for r in records), dtype=np.float64),
+        u=cat([r.u for r in records]),
+        y=cat([r.y for r in records]),
+        extra={},
+    )
+
+
+def _joint_fit(records, *, model, solver, max_steps, thresholds, tilts, grid, orientation, thermal_start, sees="auto", progress):
+    """The model choice of `fit_record` on several records (all samples train); returns ``(FitResult, info)``."""
+    from ..report._report_fit import build_model
+    from ._choose import auto_structure, screen_start
+    from ._fit import default_trainable, fit
+
+    combo = _combined(records)
+    notes = []
+    structure = model
+    if model == "auto":
+        structure, why = auto_structure(combo)
+        notes.append(f"model auto -> {structure}: {why}")
+    thresholds = (model == "auto") if thresholds is None else bool(thresholds)
+    tilts = (model == "auto") if tilts is None else bool(tilts)
+    start = build_model(structure, combo, **(grid or {}))
+    weights = [np.ones(len(r)) for r in records]
+    screening, init, screen_info = None, "auto", {}
+    if structure in ("eupi", "cascade"):
+        start, screening, screen_info = screen_start(
+            start, list(records), weights, orientation=orientation, thermal_start=thermal_start, sees=sees, progress=progress
+        )
+        init = None  # the screened start is already profiled
+    spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
+    res = fit(
+        start, list(records), solver=solver, trainable=spec, init=init, weights=weights, max_steps=max_steps, progress=progress
+    )
+    info = {
+        "structure": structure,
+        "notes": notes,
+        "screening": screening,
+        "profile": (res.info or {}).get("profile") or screen_info.get("profile") or {},
+        "thresholds": thresholds,
+        "tilts": tilts,
+    }
+    return res, info
+
+
+def _outside(u, rng) -> float:
+    u = np.asarray(u)
+    return float(np.mean((u < rng[0]) | (u > rng[1])))
+
+
+def _simulate_all(model, records):
+    from ..models._simulate import simulate
+
+    return [np.asarray(simulate(model, r.u, r.dt)) for r in records]
+
+
+def _mean_metrics(rows: list[dict | None]) -> dict | None:
+    ok = [r for r in rows if r]
+    if not ok:
+        return None
+    out = {k: float(np.mean([r[k] for r in ok])) for k in ("rmse", "e_r_percent", "max_abs_error", "mean_abs_error")}
+    out["n_samples"] = int(sum(r["n_samples"] for r in ok))
+    out["n_folds"] = len(ok)
+    return out
+
+
+def loro_sentences(folds: list[dict]) -> list[str]:
+    """One verdict per baseline over the LORO folds: per-record wins, median RMSE ratio, means of RMSE and e_r.
+
+    The model "beats" a baseline only when its mean held-out RMSE is lower *and* it
+    is lower on more than half of the held-out records: one badly predicted
+    record (spikes, an odd run) must not decide the verdict either way.
+    """
+    out = []
+    scored = [f for f in folds if f["model"]]
+    if not scored:
+        return ["no fold model gave a finite prediction: the model is not compared with the baselines"]
+    n = len(scored)
+    mm = _mean_metrics([f["model"] for f in scored])
+    for k in BASELINES:
+        bs = [f["baselines"][k] for f in scored]
+        ratios = [f["model"]["rmse"] / b["rmse"] if b["rmse"] > 0 else math.inf for f, b in zip(scored, bs)]
+        wins = sum(r < 1 for r in ratios)
+        mb = _mean_metrics(bs)
+        nums = (
+            f"lower held-out RMSE on {wins} of {n} records, median RMSE ratio {float(np.median(ratios)):.2f}; "
+            f"mean RMSE {mm['rmse']:.4g} vs {mb['rmse']:.4g}, mean e_r {mm['e_r_percent']:.3g} % vs {mb['e_r_percent']:.3g} %"
+        )
+        if mm["rmse"] < mb["rmse"] and wins > n / 2:
+            tie = "; by less than 5 % on the median record: practically a tie" if np.median(ratios) > TIE_RATIO else ""
+            out.append(f"the model beats baseline {k} on held-out records: {nums}{tie}")
+        else:
+            out.append(f"the model does not beat baseline {k} ({BASELINE_TITLES[k]}) on held-out data: {nums}")
+    return out
+
+
+def _dominant_fold(folds: list[dict]) -> str | None:
+    scored = [f for f in folds if f["model"]]
+    if len(scored) < 3:
+        return None
+    r = np.array([f["model"]["rmse"] for f in scored])
+    k = int(np.argmax(r))
+    if r[k] > 0.5 * r.sum():
+        return (
+            f"the mean held-out error is dominated by record {scored[k]['record']} (RMSE {r[k]:.4g}; median over records "
+            f"{float(np.median(r)):.4g}): look at its data-check findings before reading the mean"
+        )
+    return None
+
+
+def _unique_names(records) -> list[str]:
+    names = [r.name for r in records]
+    seen = Counter(names)
+    return [f"{n}#{i}" if seen[n] > 1 else n for i, n in enumerate(names)]
+
+
+def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_record_kwargs):
+    """Joint fit of one model to several records, with leave-one-record-out validation; ``(model, doc, details)``.
+
+    ``records``: a list of `Record` with outputs (one column choice).  Options
+    as for `fit_record` (``solver``, ``max_steps``, ``thresholds``, ``tilts``,
+    ``grid``, ``orientation``, ``thermal_start``); ``split="auto"`` (default)
+    validates by LORO when there are two or more records, ``split="none"``
+    skips it (no held-out error, ``len(records)`` fewer refits).  ``doc`` is
+    the fit.json content; ``details`` holds the per-record simulations for the
+    figures (``yhat``: joint model, ``yhat_loro``: fold model with the record held out).
+    """
+    from ..report._provenance import fit_header, versions
+    from ..report._report_fit import K2_NOTE
+    from ._fit import SOLVERS
+
+    unknown = sorted(set(fit_record_kwargs) - set(FIT_OPTIONS))
+    if unknown:
+        raise UserInputError(f"fit_records: unknown option(s) {unknown}; known: {FIT_OPTIONS}")
+    opts = {
+        "split": "auto",
+        "val_fraction": None,
+        "solver": "lm",
+        "max_steps": 300,
+        "thresholds": None,
+        "tilts": None,
+        "grid": None,
+        "orientation": "auto",
+        "thermal_start": "auto",
+        "sees": "auto",
+    }
+    opts.update(fit_record_kwargs)
+    records = [records] if hasattr(records, "u") else list(records)
+    if not records:
+        raise UserInputError("no records to fit")
+    for r in records:
+        if r.y is None:
+            raise UserInputError(f"{r.path or r.name}: no output column to fit")
+    if opts["solver"] not in SOLVERS:
+        raise UserInputError(f"unknown solver {opts['solver']!r}; choose one of {SOLVERS}")
+    if opts["split"] not in ("auto", "none"):
+        raise UserInputError(
+            f"with several records the validation is leave-one-record-out (split 'auto') or none (split 'none'); "
+            f"split {opts['split']!r} applies to one record"
+        )
+    loro = opts["split"] == "auto" and len(records) >= 2
+    names = _unique_names(records)
+    say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: log.info(msg))
+    fit_kw = {k: opts[k] for k in ("solver", "max_steps", "thresholds", "tilts", "grid", "orientation", "thermal_start", "sees")}
+    squared = is_voltage(records[0].input_name, records[0].units)
+    t_all = time.perf_counter()
+
+    folds, yhat_loro = [], [None] * len(records)
+    if loro:
+        for i, rec in enumerate(records):
+            train = [r for j, r in enumerate(records) if j != i]
+            say(f"leave-one-record-out fold {i + 1}/{len(records)}: {names[i]} held out, {len(train)} records train")
+            t0 = time.perf_counter()
+            res_i, info_i = _joint_fit(train, model=model, progress=False, **fit_kw)
+            y_i = _simulate_all(res_i.model, [rec])[0]
+            finite = bool(np.all(np.isfinite(y_i)))
+            m_i = metrics(rec.y, y_i) if finite else None
+            yhat_loro[i] = y_i if finite else None
+            bl = baselines_doc(train, None, [rec], None, squared=squared, model_heldout=m_i)
+            folds.append(
+                {
+                    "record": names[i],
+                    "structure": info_i["structure"],
+                    "model": m_i,
+                    "baselines": {k: bl["models"][k]["heldout"] for k in BASELINES},
+                    "baseline_params": {k: bl["models"][k]["params"] for k in BASELINES},
+                    "train_input_range": _input_range(train),
+                    "heldout_input_range": _input_range([rec]),
+                    "heldout_outside_train_range": _outside(rec.u, _input_range(train)),
+                    "solver_message": res_i.message,
+                    "seconds": time.perf_counter() - t0,
+                    "note": None if finite else "the fold model gives non-finite output on this record",
+                }
+            )
+            say(
+                f"  held-out {names[i]}: "
+                + (f"RMSE {m_i['rmse']:.4g}, e_r {m_i['e_r_percent']:.3g} %" if m_i else "non-finite output")
+                + "; baselines "
+                + ", ".join(f"{k} RMSE {v['rmse']:.4g}" for k, v in folds[-1]["baselines"].items())
+            )
+
+    say(f"joint fit on all {len(records)} records")
+    t0 = time.perf_counter()
+    res, info = _joint_fit(records, model=model, progress=progress, **fit_kw)
+    seconds = time.perf_counter() - t0
+    yhat = _simulate_all(res.model, records)
+    for r, y in zip(records, yhat):
+        if not np.all(np.isfinite(y)):
+            raise UserInputError(f"{r.path or r.name}: the joint model gives non-finite output ({res.message})")
+    per_train = [metrics(r.y, y) for r, y in zip(records, yhat)]
+    pooled_train = metrics(np.concatenate([r.y for r in records]), np.concatenate(yhat))
+
+    # baselines of the final fit (all records train) and their LORO scores
+    final_bl = baselines_doc(
+        records, None, records, [np.zeros(len(r), bool) for r in records], squared=squared, model_heldout=None
+    )
+    mean_model = _mean_metrics([f["model"] for f in folds]) if folds else None
+    for k in BASELINES:
+        final_bl["models"][k]["heldout"] = _mean_metrics([f["baselines"][k] for f in folds]) if folds else None
+    final_bl["heldout_kind"] = (
+        "mean over leave-one-record-out folds (each baseline refitted on the training records of the fold)" if folds else None
+    )
+    final_bl["verdict"] = (
+        loro_sentences(folds) if folds else compare_sentences(None, {k: final_bl["models"][k]["heldout"] for k in BASELINES})
+    )
+
+    notes = list(info["notes"])
+    if info["structure"] == "cascade":
+        notes.append(K2_NOTE)
+        if len(records) > 1:
+            notes.append(
+                "one thermal start rule is shared by all records (each record starts from it with its own first input); "
+                "a fitted start temperature is not per record"
+            )
+    if not res.converged:
+        notes.append(f"solver: {res.message}")
+    for f in folds:
+        if f["heldout_outside_train_range"] > 0.01:
+            lo, hi = f["train_input_range"]
+            notes.append(
+                f"held-out record {f['record']}: {100 * f['heldout_outside_train_range']:.1f} % of its input lies outside the "
+                f"other records' range [{lo:.4g}, {hi:.4g}]; its held-out error there measures extrapolation"
+            )
+    if folds and any(f["model"] is None for f in folds):
+        notes.append("some fold models gave non-finite output on their held-out record; the mean is over the other folds")
+    if folds:
+        structures = {f["structure"] for f in folds} | {info["structure"]}
+        if len(structures) > 1:
+            notes.append(f"model auto chose different structures across folds: {sorted(structures)}")
+    heavy = _dominant_fold(folds)
+    if heavy:
+        notes.append(heavy)
+    if len(records) == 1:
+        notes.append("one record: no leave-one-record-out validation (give two or more records for a held-out error)")
+    elif not loro:
+        notes.append("leave-one-record-out validation skipped (split 'none'): no held-out error")
+
+    dts = [float(r.dt) for r in records]
+    doc = {
+        **fit_header(res.model),
+        "metrics": {"train": pooled_train, "validation": mean_model},
+        "data": {
+            "file": None,
+            "files": [Path(r.path).name if r.path else None for r in records],
+            "input_column": records[0].input_name,
+            "output_column": records[0].output_name,
+            "sample_time_s": float(np.median(dts)),
+            "n_samples": int(sum(len(r) for r in records)),
+            "n_records": len(records),
+            "units": dict(records[0].units),
+            "input_range": _input_range(records),
+            "input_range_rule": "min and max of the input over all records (the joint model trains on every sample)",
+            "records": [
+                {
+                    "name": n,
+                    "path": str(r.path) if r.path else None,
+                    "sha256": r.sha256,
+                    "n_samples": len(r),
+                    "sample_time_s": float(r.dt),
+                    "input_range": _input_range([r]),
+                    "processing": list(r.processing),
+                    "load": r.load,
+                }
+                for n, r in zip(names, records)
+            ],
+        },
+        "split": {
+            "kind": "leave_one_record_out" if loro else "none",
+            "rule": (
+                f"leave one record out: {len(records)} folds, each refits on the other records and scores the held-out record "
+                "whole (simulated from its own first sample); headline = mean over folds; the kept model is the joint fit "
+                "on all records"
+                if loro
+                else "all records train; no held-out error"
+            ),
+        },
+        "validation": {
+            "kind": "leave_one_record_out" if loro else None,
+            "folds": folds,
+            "mean": {"model": mean_model, **{k: final_bl["models"][k]["heldout"] for k in BASELINES}} if folds else None,
+        },
+        "per_record_train": {n: m for n, m in zip(names, per_train)},
+        "baselines": final_bl,
+        "data_checks": data_checks_doc(records),
+        "settings": {
+            "model": model,
+            "structure": info["structure"],
+            "orientation": opts["orientation"],
+            "thermal_start": opts["thermal_start"],
+            "sees": opts["sees"],
+            "start_screening": info["screening"],
+            "split": "leave_one_record_out" if loro else "none",
+            "solver": opts["solver"],
+            "max_steps": opts["max_steps"],
+            "train_thresholds": info["thresholds"],
+            "train_tilts": info["tilts"],
+            "grid": opts["grid"] or {},
+            "init": (res.info or {}).get("init"),
+        },
+        "solver": {
+            "name": res.solver,
+            "loss": res.loss,
+            "init_loss": res.init_loss,
+            "n_steps": res.n_steps,
+            "converged": res.converged,
+            "message": res.message,
+            "seconds": seconds,
+            "total_seconds_with_folds": time.perf_counter() - t_all,
+            "profile_k1": info["profile"].get("k1"),
+        },
+        "notes": notes,
+        "versions": versions(),
+    }
+    details = {"names": names, "yhat": yhat, "yhat_loro": yhat_loro}
+    return res.model, doc, details
+
+
+# -- outputs ----------------------------------------------------------------------------
+
+
+def _fmt(x) -> str:
+    return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.4g}"
+
+
+def _report_md(doc: dict, files: dict) -> str:
+    d, s, sv, v = doc["data"], doc["settings"], doc["solver"], doc["validation"]
+    lines = [
+        f"# Joint fit of {d['n_records']} records ({s['structure']})",
+        "",
+        f"- input `{d['input_column']}`, output `{d['output_column']}`, {d['n_samples']} samples in all; "
+        f"training input range [{d['input_range'][0]:.6g}, {d['input_range'][1]:.6g}]",
+        f"- validation: {doc['split']['rule']}",
+        f"- final solver: {sv['name']} ({sv['n_steps']} steps, {sv['seconds']:.1f} s; {sv['total_seconds_with_folds']:.1f} s "
+        f"with the folds): {sv['message']}",
+        "",
+        "## Records",
+        "",
+        "| record | samples | dt (s) | input range | joint-fit RMSE (in sample) | e_r (%) | loading |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for rec in d["records"]:
+        m = doc["per_record_train"][rec["name"]]
+        proc = "; ".join(rec["processing"]) or "as read"
+        lines.append(
+            f"| `{rec['name']}` | {rec['n_samples']} | {rec['sample_time_s']:.6g} | "
+            f"[{rec['input_range'][0]:.4g}, {rec['input_range'][1]:.4g}] | {_fmt(m['rmse'])} | {_fmt(m['e_r_percent'])} | {proc} |"
+        )
+    if v["folds"]:
+        mean = v["mean"]
+        lines += [
+            "",
+            "## Leave-one-record-out (held-out errors)",
+            "",
+            f"Headline: mean held-out RMSE **{_fmt(mean['model'] and mean['model']['rmse'])}**, mean e_r "
+            f"**{_fmt(mean['model'] and mean['model']['e_r_percent'])} %** over {len(v['folds'])} folds "
+            "(e_r per held-out record's output range).",
+            "",
+            "| held-out record | model RMSE | model e_r (%) | "
+            + " | ".join(f"{k} RMSE | {k} e_r (%)" for k in BASELINES)
+            + " | model / static_poly RMSE |",
+            "| --- " * (4 + 2 * len(BASELINES)) + "|",
+        ]
+        for f in v["folds"]:
+            m = f["model"] or {}
+            ratio = m["rmse"] / f["baselines"]["static_poly"]["rmse"] if m and f["baselines"]["static_poly"]["rmse"] > 0 else None
+            lines.append(
+                f"| `{f['record']}` | {_fmt(m.get('rmse'))} | {_fmt(m.get('e_r_percent'))} | "
+                + " | ".join(f"{_fmt(f['baselines'][k]['rmse'])} | {_fmt(f['baselines'][k]['e_r_percent'])}" for k in BASELINES)
+                + f" | {_fmt(ratio)} |"
+            )
+        mm = mean["model"] or {}
+        lines.append(
+            f"| **mean** | {_fmt(mm.get('rmse'))} | {_fmt(mm.get('e_r_percent'))} | "
+            + " | ".join(f"{_fmt(mean[k]['rmse'])} | {_fmt(mean[k]['e_r_percent'])}" for k in BASELINES)
+            + f" | {_fmt(mm['rmse'] / mean['static_poly']['rmse'] if mm and mean['static_poly']['rmse'] > 0 else None)} |"
+        )
+    lines += baselines_markdown(
+        doc["baselines"], doc["metrics"]["validation"], doc["metrics"]["train"], heldout_label="LORO mean"
+    )
+    lines += data_checks_markdown(doc.get("data_checks"))
+    lines += ["", "## Parameters", "", "- full parameters of the joint model: `fit.json`"]
+    if doc["notes"]:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in doc["notes"]]
+    if files:
+        lines += ["", "## Figures", ""]
+        for key, title in [("records", "Measured, joint fit and leave-one-record-out prediction per record")]:
+            if key in files:
+                lines += [f"### {title}", "", f"![{title}]({files[key]})", ""]
+    return "\n".join(lines) + "\n"
+
+
+def _figure(out: Path, records, doc, details) -> dict:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .._io import atomic_savefig
+
+    n = len(records)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 1.9 * n + 0.6), squeeze=False)
+    for ax, r, name, y, yl in zip(axes[:, 0], records, details["names"], details["yhat"], details["yhat_loro"]):
+        ax.plot(r.time, r.y, lw=0.9, color="0.2", label="measured")
+        ax.plot(r.time, y, lw=0.9, color="C1", label="joint fit")
+        if yl is not None:
+            ax.plot(r.time, yl, lw=0.9, color="C0", ls="--", label="held out (LORO)")
+        ax.set_title(name, fontsize=8)
+        ax.set_ylabel(_axis_label(r.output_name or "output", getattr(r, "units", None)), fontsize=7)
+    axes[0, 0].legend(loc="best", fontsize=7)
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    atomic_savefig(fig, out / "fit_records.png")
+    plt.close(fig)
+    return {"records": "fit_records.png"}
+
+
+def write_records_outputs(out, records, doc, details, *, figures: bool = True) -> dict:
+    """Write ``fit.json``, ``report.md`` and (``figures``) ``fit_records.png`` of a `fit_records` result into ``out``."""
+    from .._io import atomic_write_json, atomic_write_text
+
+    out = Path(out)
+    files = _figure(out, records, doc, details) if figures else {}
+    doc = dict(doc, figures=files)
+    atomic_write_json(out / "fit.json", doc)
+    atomic_write_text(out / "report.md", _report_md(doc, files))
+    return doc

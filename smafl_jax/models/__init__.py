@@ -1,0 +1,93 @@
+"""Model classes (equinox PyTrees) and what every model needs.
+
+The hysteresis protocol (`AbstractHysteresis`) and its models (`EUPI`, `Preisach`), the Joule thermal lag
+(`JouleThermal`), the paper's eq. (7) model (`JouleLag`), the `Cascade`, the play operators and the
+models' evaluation-method rule, positivity constraints, initial-state rules, the jitted `simulate`
+entry points, padded calls and trained-range checks.
+"""
+
+from ._cascade import SEES, Cascade
+from ._constraints import POSITIVE_FLOOR, as_float_array, constrain, log_jacobian, parameter, positive, positive_mask, unconstrain
+from ._eupi import EUPI, threshold_grid, tilt_grid
+from ._hysteresis import AbstractHysteresis, column_weight_scales, hysteresis_class, hysteresis_models, hysteresis_of
+from ._initial_state import INITIAL_STATE_RULES, estimate_initial_state, with_initial_state
+from ._joule_lag import JouleLag
+from ._operators import (
+    MODEL_METHODS,
+    choose_model_method,
+    consistent_initial_state,
+    model_with_method,
+    play,
+    play_assoc,
+    play_scan,
+    play_step,
+    play_weighted,
+    resolve_method,
+)
+from ._padding import bucket_length, padded_call
+from ._preisach import (
+    Preisach,
+    cv_fit_preisach,
+    everett_weights,
+    fit_everett,
+    fit_preisach,
+    forc_shaped,
+    preisach_levels,
+    relay_loop,
+    tikhonov_matrix,
+)
+from ._simulate import simulate, simulate_batch
+from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
+
+__all__ = [
+    "AbstractHysteresis",
+    "hysteresis_of",
+    "hysteresis_models",
+    "hysteresis_class",
+    "column_weight_scales",
+    "EUPI",
+    "threshold_grid",
+    "tilt_grid",
+    "Preisach",
+    "preisach_levels",
+    "tikhonov_matrix",
+    "fit_preisach",
+    "cv_fit_preisach",
+    "relay_loop",
+    "everett_weights",
+    "fit_everett",
+    "forc_shaped",
+    "JouleThermal",
+    "PAPER_K1",
+    "PAPER_K2",
+    "thermal_step",
+    "effective_voltage",
+    "JouleLag",
+    "SEES",
+    "Cascade",
+    "MODEL_METHODS",
+    "choose_model_method",
+    "resolve_method",
+    "model_with_method",
+    "play_step",
+    "play",
+    "play_scan",
+    "play_assoc",
+    "play_weighted",
+    "consistent_initial_state",
+    "positive",
+    "parameter",
+    "as_float_array",
+    "constrain",
+    "unconstrain",
+    "log_jacobian",
+    "positive_mask",
+    "POSITIVE_FLOOR",
+    "INITIAL_STATE_RULES",
+    "with_initial_state",
+    "estimate_initial_state",
+    "simulate",
+    "simulate_batch",
+    "bucket_length",
+    "padded_call",
+]

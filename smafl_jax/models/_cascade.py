@@ -1,0 +1,105 @@
+"""Cascade actuator model: voltage -> Joule heat -> thermal state -> hysteresis (EUPI by default) -> displacement.
+
+Documented choice of what the hysteresis sees (PAPER.md): the EUPI acts on the
+*effective quasi-static voltage* ``u_eff = sqrt(theta k1 / k2)``, the constant
+voltage that would hold the thermal state where it is.  At steady state
+``u_eff`` equals the applied voltage, so in quasi-static conditions the cascade
+is exactly the voltage-domain EUPI identified in the paper (tested), while
+fast drives are low-pass filtered by the thermal lag.
+
+Identifiability: ``theta`` scales with ``k2`` and ``u_eff`` divides it out, so
+the cascade's displacement depends on the thermal time constant ``1/k1`` but
+not on ``k2``.  ``k2`` only has meaning for the Joule model fitted alone
+(``U^2`` -> output, the paper's eq. 7) or for a measured temperature.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import equinox as eqx
+
+from .. import _config  # noqa: F401
+from .._io import register_model
+from ._eupi import EUPI
+from ._hysteresis import AbstractHysteresis
+from ._thermal import JouleThermal
+
+__all__ = ["SEES", "Cascade"]
+
+SEES = ("voltage", "heat")
+
+
+@register_model
+class Cascade(eqx.Module):
+    """Thermal model followed by a hysteresis model (`AbstractHysteresis`: EUPI, Preisach)."""
+
+    #: The output is ``features(u, dt) @ hysteresis.linear_weights()`` (a class constant, not a field).
+    linear_in_weights = True
+
+    thermal: JouleThermal
+    hysteresis: AbstractHysteresis
+    # What the hysteresis acts on: "voltage" = the effective voltage sqrt(theta k1/k2) (the paper's
+    # voltage-domain EUPI); "heat" = theta k1/k2 = u_eff^2 (V^2), i.e. the temperature rise, where the
+    # phase transformation of an SMA really happens. Play operators are not invariant under the square,
+    # so the two are different model classes; `smafl fit` screens both.
+    sees: str = eqx.field(static=True, default="voltage")
+
+    def __check_init__(self):
+        if self.sees not in SEES:
+            raise ValueError(f"Cascade sees must be one of {SEES}, got {self.sees!r}")
+
+    def drive_of(self, theta):
+        """Signal the hysteresis sees for thermal state ``theta``."""
+        u_eff = self.thermal.effective_voltage(theta)
+        return u_eff if self.sees == "voltage" else u_eff * u_eff
+
+    def hysteresis_input(self, u, dt):
+        return self.drive_of(self.thermal.simulate(u, dt))
+
+    def steady_drive(self, u):
+        """Hysteresis input once a constant voltage ``u`` has been held (``u``, or ``u^2`` for ``sees="heat"``)."""
+        return u if self.sees == "voltage" else u * u
+
+    def features(self, u, dt):
+        """Design matrix of the hysteresis weights: ``simulate(u, dt) = features(u, dt) @ hysteresis.linear_weights()``."""
+        return self.hysteresis.features(self.hysteresis_input(u, dt))
+
+    def with_hysteresis(self, h: AbstractHysteresis) -> Cascade:
+        """Copy with the hysteresis part replaced."""
+        return eqx.tree_at(lambda m: m.hysteresis, self, h)
+
+    def states(self, u, dt):
+        """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``drive`` (hysteresis input), ``y``."""
+        theta = self.thermal.simulate(u, dt)
+        drive = self.drive_of(theta)
+        return {
+            "theta": theta,
+            "u_eff": self.thermal.effective_voltage(theta),
+            "drive": drive,
+            "y": self.hysteresis.simulate(drive),
+        }
+
+    def simulate(self, u, dt):
+        """Displacement for voltage record ``u`` sampled every ``dt`` seconds."""
+        return self.hysteresis.simulate(self.hysteresis_input(u, dt))
+
+    def with_method(self, method: str) -> Cascade:
+        """Copy with both parts evaluated by ``method`` ("auto", "scan", "assoc", "chunked", "segmented")."""
+        return dataclasses.replace(
+            self,
+            thermal=dataclasses.replace(self.thermal, method=method),
+            hysteresis=self.hysteresis.with_method(method),
+        )
+
+    @classmethod
+    def from_range(cls, u_max, *, thermal=None, sees="voltage", **eupi_kwargs):
+        """Untrained cascade for drive voltages in ``[0, u_max]`` (paper defaults for the thermal part)."""
+        if sees not in SEES:
+            raise ValueError(f"sees must be one of {SEES}, got {sees!r}")
+        top = u_max if sees == "voltage" else u_max * u_max
+        return cls(
+            thermal=thermal if thermal is not None else JouleThermal(),
+            hysteresis=EUPI.from_range(0.0, top, **eupi_kwargs),
+            sees=sees,
+        )

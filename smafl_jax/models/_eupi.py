@@ -1,0 +1,316 @@
+"""Extended unparallel Prandtl-Ishlinskii (EUPI) hysteresis model, eq. (2).
+
+Convention (the paper's index notation is loose; this is the one used here).
+The operators act on the normalised input ``s = (u - u_ref) / u_span`` so that
+thresholds are fractions of the input span and gains are comparable across
+data sets.  With ``u_ref = 0`` this is exactly the paper's model with
+thresholds ``r * u_span`` and rescaled gains (play operators are homogeneous:
+``F_{c r, a}[c s] = c F_{r, a}[s]``).  The output is
+
+    H(k) = gain * s(k)                                   # G u(k)
+         + sum_i v_i     F_{r_sym_i, 1}[s](k)            # symmetric part (CPI)
+         + sum_ij w_ij   F_{r_asym_j, alpha_i}[s](k)     # unparallel part (UPI), i: tilt, j: threshold
+         + sum_m poly_m  s(k)^(m+2)                      # polynomial, m = 0.. (orders 2..Np)
+         + offset                                        # p0
+
+``gain``, ``v``, ``w`` (and thresholds, tilts) are positive by construction
+(see `smafl_jax.positive`); ``poly`` and ``offset`` are free.  The model is
+linear in ``(gain, v, w, poly, offset)`` for fixed thresholds and tilts:
+`EUPI.features` returns that design matrix, which is what the paper's
+constrained least squares (and this toolkit's initialiser) solves.
+
+Initial state (``init``): ``"descended"`` (default) starts every operator on
+its upper bound at the first input, the state an actuator is left in after the
+previous cycle came down to the starting input, so periodic loops between 0 and
+a maximum close on themselves as in the paper's figures; ``"zero"`` starts all
+operators at 0 (``F(-1) = 0``, a virgin actuator); ``"consistent"`` is the state
+reached when the first input is approached from 0; ``"fitted"`` places each
+operator at a trained position between its two bounds at the first input
+(``memory``: one logit per operator, 0 = midway, large = descended, very
+negative = ascended), for records that start on an unknown branch.
+
+Grid rule (`EUPI.from_range`): ``n`` thresholds ``r_i = i / (2 n)``,
+i = 1..n, i.e. from ``span/(2n)`` to half the input span (an operator of
+threshold >= span/2 can no longer reverse inside the data range); tilts
+geometrically spaced in [0.4, 2.5] (both sides of the symmetric tilt 1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Collection
+from types import MappingProxyType
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import _config  # noqa: F401
+from .._io import register_model
+from ._constraints import parameter, positive
+from ._hysteresis import AbstractHysteresis
+from ._operators import MODEL_METHODS, consistent_initial_state, play, play_step, play_weighted
+
+__all__ = ["EUPI", "threshold_grid", "tilt_grid"]
+
+_INITS = ("descended", "zero", "consistent", "fitted")
+#: Start logit of a fitted memory: sigmoid(5) = 0.993 of the way to the descended state, with a gradient left.
+DESCENDED_LOGIT = 5.0
+
+
+def threshold_grid(n):
+    """Documented threshold rule on the normalised input: ``r_i = i / (2 n)``, i = 1..n."""
+    if int(n) < 0:
+        raise ValueError(f"number of thresholds must be >= 0, got {n}")
+    return np.arange(1, int(n) + 1, dtype=np.float64) / (2.0 * max(int(n), 1))
+
+
+def tilt_grid(n, lo=0.4, hi=2.5):
+    """Tilts geometrically spaced in ``[lo, hi]``."""
+    if int(n) < 0:
+        raise ValueError(f"number of tilts must be >= 0, got {n}")
+    if int(n) == 1:
+        return np.array([np.sqrt(lo * hi)])
+    return np.geomspace(lo, hi, int(n))
+
+
+@register_model
+class EUPI(AbstractHysteresis):
+    """EUPI hysteresis model (eq. 2) as a PyTree; call `simulate(u)` for the output.
+
+    Final implementation of `AbstractHysteresis` (do not subclass).
+    """
+
+    INITS = _INITS
+    trainable_groups = MappingProxyType({"thresholds": ("r_sym", "r_asym"), "tilts": ("alpha",)})
+    scalable_thresholds = True
+
+    gain: jnp.ndarray = positive()
+    v: jnp.ndarray = positive()
+    w: jnp.ndarray = positive()
+    poly: jnp.ndarray = parameter()
+    offset: jnp.ndarray = parameter()
+    r_sym: jnp.ndarray = positive()
+    r_asym: jnp.ndarray = positive()
+    alpha: jnp.ndarray = positive()
+    u_ref: jnp.ndarray = parameter()
+    u_span: jnp.ndarray = positive()
+    # init="fitted": logit of each operator's start between its ascending (lower) and descending (upper)
+    # bound at the first input, trained with the gains (None for the other init rules)
+    memory: jnp.ndarray | None = parameter(default=None)
+    init: str = eqx.field(static=True, default="descended")
+    # evaluation form of the operator bank: "scan" (sequential), "assoc" / "chunked" / "segmented" (exact
+    # parallel-in-time forms of smafl_jax.ops, equal to scan bit for bit) or "auto" (choose_model_method)
+    method: str = eqx.field(static=True, default="scan")
+    # +1: output rises with the operator sum (displacement sensor); -1: falls (length sensor, sensor
+    # mounted the other way). The operator gains stay >= 0 either way, so the sign lives here.
+    orientation: int = eqx.field(static=True, default=1)
+
+    def __check_init__(self):
+        if self.orientation not in (1, -1):
+            raise ValueError(f"EUPI orientation must be +1 or -1, got {self.orientation!r}")
+        if self.init not in _INITS:
+            raise ValueError(f"EUPI init must be one of {_INITS}, got {self.init!r}")
+        if (self.init == "fitted") != (self.memory is not None):
+            raise ValueError("EUPI init='fitted' needs memory (one logit per operator), and memory needs init='fitted'")
+        if self.memory is not None and np.shape(self.memory) != (self.n_operators,):
+            raise ValueError(f"memory must have shape ({self.n_operators},), got {np.shape(self.memory)}")
+        if self.method not in MODEL_METHODS:
+            raise ValueError(f"EUPI method must be one of {MODEL_METHODS}, got {self.method!r}")
+        nv, ns = np.shape(self.v), np.shape(self.r_sym)
+        if nv != ns:
+            raise ValueError(f"v has shape {nv} but r_sym has shape {ns}; they must match")
+        wa = (np.shape(self.alpha)[0], np.shape(self.r_asym)[0])
+        if np.shape(self.w) != wa:
+            raise ValueError(f"w must have shape (len(alpha), len(r_asym)) = {wa}, got {np.shape(self.w)}")
+
+    @classmethod
+    def from_range(
+        cls,
+        u_min,
+        u_max,
+        *,
+        n_sym=8,
+        n_alpha=4,
+        n_asym=4,
+        poly_order=3,
+        u_ref=None,
+        init="descended",
+        method="scan",
+        orientation=1,
+    ):
+        """Untrained EUPI with the documented grids for inputs in ``[u_min, u_max]``.
+
+        ``u_ref`` defaults to ``min(u_min, 0)`` clipped so that voltage-like
+        inputs keep the paper's origin; pass ``u_ref=u_min`` for inputs with a
+        physical offset (temperature, pressure).  Gains start at zero; fit them.
+        """
+        u_min, u_max = float(u_min), float(u_max)
+        if not np.isfinite(u_min) or not np.isfinite(u_max) or u_max <= u_min:
+            raise ValueError(f"input range must be finite with u_max > u_min, got [{u_min}, {u_max}]")
+        if int(poly_order) < 1:
+            raise ValueError(f"poly_order must be >= 1 (1 = no polynomial terms), got {poly_order}")
+        ref = (0.0 if u_min >= 0.0 else u_min) if u_ref is None else float(u_ref)
+        span = u_max - ref
+        if span <= 0:
+            raise ValueError(f"u_ref={ref} must be below u_max={u_max}")
+        n_alpha = int(n_alpha) if int(n_asym) > 0 else 0
+        return cls(
+            gain=jnp.asarray(0.0),
+            v=jnp.zeros(int(n_sym)),
+            w=jnp.zeros((n_alpha, int(n_asym) if n_alpha else 0)),
+            poly=jnp.zeros(int(poly_order) - 1),
+            offset=jnp.asarray(0.0),
+            r_sym=jnp.asarray(threshold_grid(n_sym)),
+            r_asym=jnp.asarray(threshold_grid(n_asym) if n_alpha else np.zeros(0)),
+            alpha=jnp.asarray(tilt_grid(n_alpha)),
+            u_ref=jnp.asarray(ref),
+            u_span=jnp.asarray(span),
+            init=init,
+            memory=jnp.full(int(n_sym) + n_alpha * int(n_asym), DESCENDED_LOGIT) if init == "fitted" else None,
+            method=method,
+            orientation=int(orientation),
+        )
+
+    # -- structure -------------------------------------------------------
+    @property
+    def n_operators(self):
+        return int(np.shape(self.r_sym)[0] + np.size(self.w))
+
+    def _bank(self):
+        n_alpha, n_ra = np.shape(self.w)
+        r = jnp.concatenate([self.r_sym, jnp.tile(self.r_asym, n_alpha)])
+        a = jnp.concatenate([jnp.ones_like(self.r_sym), jnp.repeat(self.alpha, n_ra)])
+        return r, a
+
+    def with_range(self, u_min, u_max, **options):
+        """Untrained EUPI with this one's grid sizes and options for inputs in ``[u_min, u_max]``."""
+        n_alpha, n_asym = np.shape(self.w)
+        kw = dict(
+            n_sym=np.shape(self.v)[0], n_alpha=n_alpha, n_asym=n_asym, poly_order=np.shape(self.poly)[0] + 1,
+            init=self.init, method=self.method, orientation=self.orientation,
+        )  # fmt: skip
+        return type(self).from_range(u_min, u_max, **{**kw, **options})
+
+    def with_fitted_memory(self, logit=None) -> EUPI:
+        """Copy with ``init="fitted"``: every operator starts at ``sigmoid(logit)`` of the way from its lower
+        to its upper bound (default: near the descended state), a trainable ``memory``."""
+        logit = DESCENDED_LOGIT if logit is None else logit
+        return dataclasses.replace(self, init="fitted", memory=jnp.full(self.n_operators, float(logit)))
+
+    def with_method(self, method: str) -> EUPI:
+        return dataclasses.replace(self, method=method)
+
+    def linear_fields(self):
+        return ("gain", "v", "w", "poly", "offset")
+
+    def fixed_fields(self, train: Collection[str] = ()):
+        """``u_ref``, ``u_span`` always; thresholds and tilts unless their group is in ``train``."""
+        grids = [f for group, names in self.trainable_groups.items() if group not in train for f in names]
+        return ("u_ref", "u_span", *grids)
+
+    def _initial_state(self, s0, r, a):
+        if self.init == "descended":
+            y0 = a * (s0 + r)  # upper bound at the first input: state left by a descent to u(0)
+        elif self.init == "consistent":
+            y0 = consistent_initial_state(s0, r, a)
+        elif self.init == "fitted":
+            lo, up = s0 - r, a * (s0 + r)
+            y0 = lo + jax.nn.sigmoid(self.memory) * (up - lo)
+        else:
+            y0 = None
+        return y0
+
+    def initial_state(self, x0):
+        """Operator outputs before the first sample, by the ``init`` rule at the first input ``x0``."""
+        r, a = self._bank()
+        y0 = self._initial_state(self.normalise(x0), r, a)
+        return jnp.zeros_like(r) if y0 is None else y0
+
+    def step(self, state, x):
+        """One sample: play step of every operator, then the linear read-out (``features`` row @ weights)."""
+        s = self.normalise(x)
+        r, a = self._bank()
+        ops, _ = play_step(state, s, r, a)
+        n_poly = np.shape(self.poly)[0]
+        sign = float(self.orientation)  # a length sensor reads the operator sum with a minus sign
+        powers = jnp.stack([s ** (m + 2) for m in range(n_poly)]) if n_poly else s[None][:0]
+        row = jnp.concatenate([sign * s[None], sign * ops, powers, jnp.ones(1)])
+        return ops, row @ self.linear_weights()
+
+    def operators(self, u, threshold_scale=None):
+        """Operator outputs ``(T, n_sym + n_alpha * n_asym)`` on the normalised input.
+
+        ``threshold_scale`` (``(T,)``, optional): every threshold multiplied by it at each sample (the
+        ``rate_dependence`` effect); the sequential scan is then the only form.
+        """
+        s = self.normalise(u)
+        r, a = self._bank()
+        if threshold_scale is None:
+            return play(s, r, a, y0=self._initial_state(s[0], r, a), method=self.method)
+        y0 = self._initial_state(s[0], r * threshold_scale[0], a)
+        y0 = jnp.zeros_like(r) if y0 is None else y0
+
+        def step(carry, xs):
+            sk, fk = xs
+            rk = r * fk
+            y = jnp.maximum(sk - rk, jnp.minimum(a * (sk + rk), carry))
+            return y, y
+
+        _, ys = jax.lax.scan(step, y0, (s, threshold_scale))
+        return ys
+
+    def features(self, u, dt=None, *, threshold_scale=None):
+        """Design matrix ``(T, p)``: columns ``[s, F_sym, F_asym (tilt-major), s^2.., 1]`` (``dt`` ignored)."""
+        del dt
+        s = self.normalise(u)
+        ops = self.operators(u, threshold_scale)
+        n_poly = np.shape(self.poly)[0]
+        # poly_order=1 (no polynomial terms) gives an empty block, not a failing empty stack
+        powers = jnp.stack([s ** (m + 2) for m in range(n_poly)], axis=-1) if n_poly else jnp.zeros((s.shape[0], 0))
+        powers = powers.reshape(s.shape[0], n_poly)
+        signed = float(self.orientation) * jnp.concatenate([s[:, None], ops], axis=1)
+        return jnp.concatenate([signed, powers, jnp.ones_like(s)[:, None]], axis=1)
+
+    def linear_weights(self):
+        """Gains in the column order of `features`."""
+        return jnp.concatenate(
+            [jnp.reshape(self.gain, (1,)), self.v, jnp.ravel(self.w), self.poly, jnp.reshape(self.offset, (1,))]
+        )
+
+    def nonnegative_columns(self):
+        """Bool mask over `features` columns whose weights must be >= 0."""
+        n_pos = 1 + np.shape(self.v)[0] + np.size(self.w)
+        return np.concatenate([np.ones(n_pos, bool), np.zeros(np.shape(self.poly)[0] + 1, bool)])
+
+    def with_linear_weights(self, theta):
+        """Copy with gains taken from ``theta`` (column order of `features`)."""
+        theta = jnp.asarray(theta, dtype=jnp.float64)
+        nv, nw, npoly = np.shape(self.v)[0], np.size(self.w), np.shape(self.poly)[0]
+        expected = 1 + nv + nw + npoly + 1
+        if theta.shape != (expected,):
+            raise ValueError(f"expected {expected} linear weights, got shape {theta.shape}")
+        i = 0
+        gain = theta[0]
+        i = 1
+        v = theta[i : i + nv]
+        i += nv
+        w = theta[i : i + nw].reshape(np.shape(self.w))
+        i += nw
+        poly = theta[i : i + npoly]
+        offset = theta[i + npoly]
+        return eqx.tree_at(lambda m: (m.gain, m.v, m.w, m.poly, m.offset), self, (gain, v, w, poly, offset))
+
+    # -- evaluation ------------------------------------------------------
+    def simulate(self, u, dt=None):
+        """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
+        del dt
+        # Every method goes through smafl_jax.ops with the weights applied per step; for "scan" the
+        # weighted sum is inside the scan and writes T numbers instead of T x n (see benchmarks/README.md).
+        s = self.normalise(u)
+        r, a = self._bank()
+        w = jnp.concatenate([self.v, jnp.ravel(self.w)])
+        ops = play_weighted(s, r, a, w, y0=self._initial_state(s[0], r, a), method=self.method)
+        poly = sum((c * s ** (m + 2) for m, c in enumerate(self.poly)), jnp.zeros_like(s))
+        return float(self.orientation) * (self.gain * s + ops) + poly + self.offset

@@ -1,0 +1,197 @@
+"""Hysteresis protocol: the operations every consumer needs of a hysteresis model (diffrax-style).
+
+`AbstractHysteresis` is the abstract `equinox.Module` that fitting (`smafl_jax.fit`), sampling
+(`Posterior`), control (`plant_step`, `IICompensator`), diagnosis and the effect catalogue
+(`ExtendedModel`) program against; the concrete models (`EUPI`, `Preisach`) are final classes.
+A hysteresis model is a rate-independent map with memory from a scalar input record ``x(k)`` to an
+output ``y(k)``, linear in its *linear weights* for fixed grids:
+
+    y = features(x) @ linear_weights()
+
+with the same state rule as the evaluation.  Its contract:
+
+- ``features(x)`` ``(T, p)``, ``linear_weights()`` ``(p,)``, ``with_linear_weights(theta)``,
+  ``nonnegative_columns()`` (bool ``(p,)``: the weights that must stay >= 0) and ``linear_fields()``
+  (the fields that hold the linear weights);
+- ``fixed_fields(train=())``: fields never trained or sampled (grids, spans); optional groups named in
+  `trainable_groups` (EUPI: ``"thresholds"``, ``"tilts"``) are trained when named in ``train``;
+- the state rule: ``initial_state(x0)`` is the state *before* the first sample given the first input
+  (the ``init`` rule), ``step(state, x) -> (state, y)`` is one pure sample, so that
+  ``lax.scan(step, initial_state(x[0]), x)`` equals ``simulate(x)`` (tested for every model);
+- ``simulate(u, dt=None)`` / ``__call__``: the whole-record evaluation (``dt`` ignored);
+- ``orientation`` (+1: the output rises with the input for non-negative weights, -1: it falls), which
+  the integral-inverse compensator uses as the slope sign of its forward model;
+- ``from_range(u_min, u_max)`` (untrained model for an input range) and ``with_range`` (the same
+  structure rescaled to another range).
+
+Composite models expose their hysteresis the same way: ``model.hysteresis`` (a hysteresis model is
+its own), ``model.with_hysteresis(h)`` and ``model.hysteresis_input(u, dt)``; `hysteresis_of`
+returns ``None`` for models without one (the Joule lag).
+
+Registry: the concrete classes are named in `smafl_jax._choices.HYSTERESIS` (a JAX-free module, so
+``smafl fit --help`` lists them without importing JAX); `hysteresis_models` resolves them.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Collection
+from importlib import import_module
+from types import MappingProxyType
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import _config  # noqa: F401
+
+__all__ = ["AbstractHysteresis", "hysteresis_of", "hysteresis_models", "hysteresis_class", "column_weight_scales"]
+
+
+class AbstractHysteresis(eqx.Module):
+    """Rate-independent hysteresis ``x -> y`` with memory, linear in its weights for fixed grids (see module docstring)."""
+
+    # Fields every implementation declares itself (an `eqx.AbstractVar` here would move them to the front of
+    # the subclass's dataclass fields, changing its positional __init__ and JSON order): ``u_ref``, ``u_span``
+    # (normalisation s = (x - u_ref) / u_span), ``init`` (initial-state rule, static) and ``orientation``
+    # (+1 / -1, static: the sign of the non-negative part of the features).
+
+    # Class constants (plain attributes, not annotated: a ClassVar annotation would enter every subclass's
+    # __dataclass_fields__).
+    #: Initial-state rules the model accepts as ``init`` (the first is the default).
+    INITS = ()
+    #: Optional groups of grid fields a fit may train on request (``{"thresholds": ("r_sym", "r_asym")}``).
+    trainable_groups = MappingProxyType({})
+    #: ``features(x, threshold_scale=...)`` accepted: thresholds scaled per sample (the ``rate_dependence`` effect).
+    scalable_thresholds = False
+    #: The output is ``features(u, dt) @ hysteresis.linear_weights()`` (true of every hysteresis model and cascade).
+    linear_in_weights = True
+
+    # -- construction --------------------------------------------------------
+    @classmethod
+    @abc.abstractmethod
+    def from_range(cls, u_min, u_max, **options) -> AbstractHysteresis:
+        """Untrained model (weights zero) for inputs in ``[u_min, u_max]``."""
+
+    @abc.abstractmethod
+    def with_range(self, u_min, u_max) -> AbstractHysteresis:
+        """Untrained model of the same structure (grid sizes, options) for inputs in ``[u_min, u_max]``."""
+
+    # -- linear structure ----------------------------------------------------
+    @abc.abstractmethod
+    def features(self, x, dt=None) -> jnp.ndarray:
+        """Design matrix ``(T, p)`` of the linear weights on input record ``x`` (same state rule as `simulate`; ``dt`` ignored)."""
+
+    @abc.abstractmethod
+    def linear_weights(self) -> jnp.ndarray:
+        """Weights ``(p,)`` in the column order of `features`."""
+
+    @abc.abstractmethod
+    def with_linear_weights(self, theta) -> AbstractHysteresis:
+        """Copy with the weights taken from ``theta`` (column order of `features`)."""
+
+    @abc.abstractmethod
+    def nonnegative_columns(self) -> np.ndarray:
+        """Bool mask over `features` columns whose weights must be >= 0."""
+
+    @abc.abstractmethod
+    def linear_fields(self) -> tuple[str, ...]:
+        """Names of the fields `with_linear_weights` sets (marginalised / profiled together by the sampler)."""
+
+    def weight_scales(self) -> dict[str, float]:
+        """Prior scale of each linear field's weights, relative to the output range (the sampler's priors).
+
+        1 (the default) for a weight whose feature column alone can span the output (an EUPI gain);
+        a bank of ``n`` relays sharing the output gets ``1 / sqrt(n)`` each, so the bank as a whole
+        has the scale of one gain.
+        """
+        return dict.fromkeys(self.linear_fields(), 1.0)
+
+    @abc.abstractmethod
+    def fixed_fields(self, train: Collection[str] = ()) -> tuple[str, ...]:
+        """Names of the array fields never trained or sampled; groups of `trainable_groups` named in ``train`` are trained."""
+
+    # -- state rule ------------------------------------------------------------
+    @abc.abstractmethod
+    def initial_state(self, x0) -> Any:
+        """State before the first sample for a record whose first input is ``x0`` (the ``init`` rule)."""
+
+    @abc.abstractmethod
+    def step(self, state, x) -> tuple[Any, jnp.ndarray]:
+        """One sample: ``(state, x(k)) -> (state, y(k))`` (pure; the body of the whole-record scan)."""
+
+    # -- evaluation ------------------------------------------------------------
+    def simulate(self, u, dt=None) -> jnp.ndarray:
+        """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
+        del dt
+        x = jnp.asarray(u, dtype=jnp.float64)
+        _, y = jax.lax.scan(lambda state, xk: self.step(state, xk), self.initial_state(x[0]), x)
+        return y
+
+    def __call__(self, u, dt=None) -> jnp.ndarray:
+        return self.simulate(u, dt)
+
+    def normalise(self, x):
+        """``s = (x - u_ref) / u_span``."""
+        return (jnp.asarray(x, dtype=jnp.float64) - self.u_ref) / self.u_span
+
+    def denormalise(self, s):
+        """Inverse of `normalise`."""
+        return jnp.asarray(s, dtype=jnp.float64) * self.u_span + self.u_ref
+
+    def with_method(self, method: str) -> AbstractHysteresis:
+        """Copy evaluated by ``method`` (models with parallel-in-time forms override; others have one form)."""
+        del method
+        return self
+
+    # -- as a model: a hysteresis is its own hysteresis part --------------------------
+    @property
+    def hysteresis(self) -> AbstractHysteresis:
+        return self
+
+    def with_hysteresis(self, h: AbstractHysteresis) -> AbstractHysteresis:
+        return h
+
+    def hysteresis_input(self, u, dt=None):
+        """The signal the hysteresis sees: the input itself."""
+        del dt
+        return jnp.asarray(u, dtype=jnp.float64)
+
+    def steady_drive(self, u):
+        """Hysteresis input once a constant input ``u`` has been held (the input itself; a cascade maps it)."""
+        return u
+
+
+def hysteresis_of(model) -> AbstractHysteresis | None:
+    """The hysteresis part of ``model`` (the model itself, a cascade's, an extended model's), or None."""
+    h = getattr(model, "hysteresis", None)
+    return h if isinstance(h, AbstractHysteresis) else None
+
+
+def column_weight_scales(h: AbstractHysteresis) -> np.ndarray:
+    """`AbstractHysteresis.weight_scales` spread over the columns of ``features`` (``(p,)``)."""
+    p = int(np.shape(h.linear_weights())[0])
+    index = h.with_linear_weights(jnp.arange(p, dtype=jnp.float64))  # each field then holds its column numbers
+    out = np.ones(p)
+    for field, scale in h.weight_scales().items():
+        out[np.asarray(getattr(index, field), dtype=int).ravel()] = scale
+    return out
+
+
+def hysteresis_class(name: str) -> type:
+    """Concrete hysteresis class registered as ``name`` in `smafl_jax._choices.HYSTERESIS`."""
+    from .._choices import HYSTERESIS
+
+    if name not in HYSTERESIS:
+        raise KeyError(f"unknown hysteresis model {name!r}; registered: {sorted(HYSTERESIS)}")
+    module, cls = HYSTERESIS[name].split(":")
+    return getattr(import_module(f"smafl_jax.{module}"), cls)
+
+
+def hysteresis_models() -> list[type]:
+    """Every registered concrete hysteresis class (tests parametrise over this list)."""
+    from .._choices import HYSTERESIS
+
+    return [hysteresis_class(name) for name in HYSTERESIS]

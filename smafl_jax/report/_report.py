@@ -1,0 +1,226 @@
+"""Writing a diagnosis: diagnosis.json, base_fit.json / extended_fit.json (fit.json format), report.md, plots."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model, to_jsonable
+from ._provenance import record_data, versions
+from ._reportdoc import axis_label, unit_of
+
+__all__ = ["write_diagnosis", "versions"]
+
+
+def _fit_doc(rec, res, which, deployed=False):
+    part = res["base"] if which == "base" else res["extended"]
+    extra = {}
+    if deployed:
+        # the deployed model has no held-out data left: its validation figures are those of the same structure fitted on the split
+        extra = {
+            "refit": {
+                "fitted_on": res["deployed"]["fitted_on"],
+                "segments": res["deployed"]["segments"],
+                "rmse_all_samples": res["deployed"][f"{'base' if which == 'base' else 'extended'}_rmse_all"],
+                "validation_metrics_from": f"{which}_fit_train.json (same structure fitted on the training split only)",
+            }
+        }
+    return {
+        "metrics": {"train": part["train"], "validation": part["heldout"]},
+        **extra,
+        # the record's provenance as in fit.json; an in-memory record keeps its name as "file"
+        "data": {**record_data(rec), **({} if rec.path else {"file": rec.name})},
+        "settings": {
+            "command": "diagnose",
+            "split": res["split"],
+            "effects": part.get("effects", []),
+            "base_rule": res["base"]["rule"],
+        },
+        "versions": versions(),
+        "solver": {
+            "method": "variable projection: bounded least squares for the EUPI gains, Nelder-Mead for thermal/effect parameters"
+        },
+    }
+
+
+def _plot(path, split, model_sim, title, ylabel="output"):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..diagnosis._residuals import autocorrelation
+
+    fig, ax = plt.subplots(3, 1, figsize=(10, 8), layout="constrained")
+    t0 = 0.0
+    all_e = []
+    for kind, segs in (("train", split.train), ("held-out", split.test)):
+        for s in segs:
+            yh = model_sim(s)
+            x = t0 + np.arange(int(s.mask.sum()))
+            e = (s.y - yh)[s.mask]
+            all_e.append(e)
+            color = "C0" if kind == "train" else "C3"
+            ax[0].plot(x, s.y[s.mask], color="k", lw=0.8)
+            ax[0].plot(x, yh[s.mask], color=color, lw=0.8)
+            ax[1].plot(x, e, color=color, lw=0.8, label=kind if s is segs[0] else None)
+            t0 = x[-1] + 1 if x.size else t0
+    two_lines = lambda label: label.replace(" (", "\n(", 1)  # name over unit: long labels stay inside the figure
+    ax[0].set_ylabel(two_lines(ylabel))
+    ax[0].set_title("black: measured; blue: model on training blocks; red: model on held-out blocks", fontsize=9)
+    ax[1].set_ylabel(two_lines(ylabel.replace(ylabel.split(" (")[0], "residual", 1)))
+    ax[1].legend(loc="upper right")
+    ax[1].set_xlabel("sample (train blocks, then held-out blocks)")
+    e = np.concatenate(all_e)
+    rho = autocorrelation(e, min(100, e.size // 3))
+    ax[2].bar(np.arange(rho.size), rho, width=0.8)
+    b = 1.96 / np.sqrt(e.size)
+    ax[2].axhline(b, color="r", ls="--", lw=0.8)
+    ax[2].axhline(-b, color="r", ls="--", lw=0.8)
+    ax[2].set_ylabel("residual autocorrelation (unitless)")
+    ax[2].set_xlabel("lag (samples)")
+    fig.suptitle(title)
+    atomic_savefig(fig, path)
+    plt.close(fig)
+
+
+def _report_md(rec, res):
+    b, x = res["base"], res["extended"]
+    u = unit_of(rec.output_name, getattr(rec, "units", None)) or f"units of '{rec.output_name}'"
+    L = [
+        f"# Diagnosis of `{rec.name}`",
+        "",
+        f"- Base model: {b['rule']}",
+        f"- Split: {res['split']['rule']}",
+        *([f"- **Warning:** {res['split']['coverage']['warning']}"] if res["split"].get("coverage", {}).get("warning") else []),
+        f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**",
+        "",
+        f"| model | train RMSE ({u}) | held-out RMSE ({u}) | held-out e_r (%) |",
+        "|---|---|---|---|",
+        f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
+        f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |",
+        "",
+        "## Base residuals",
+        "",
+    ]
+    for part in ("train", "heldout"):
+        w = res["residuals"][part]["whiteness"]
+        lb = w["ljung_box"] or {}
+        L.append(
+            f"- {part}: Ljung-Box Q = {lb.get('Q', float('nan')):.1f} (p = {lb.get('p_value', float('nan')):.2g}); "
+            f"{100 * w['acf_fraction_outside']:.0f} % of ACF lags outside +-{w['acf_bound']:.3f}; "
+            f"max |ccf with input| {w['ccf_max_abs']:.2f} at lag {w['ccf_argmax_lag']}"
+        )
+    corr = res["residuals"]["train"]["signal_correlations"]
+    L += [
+        "",
+        "Correlation of the training residual with candidate signals (p on a Bartlett-effective n):",
+        "",
+        "| signal | corr | n_eff | p |",
+        "|---|---|---|---|",
+    ]
+    for k in sorted(corr, key=lambda k: -abs(corr[k]["corr"])):
+        L.append(f"| {k} | {corr[k]['corr']:+.3f} | {corr[k]['n_eff']:.0f} | {corr[k]['p_value']:.2g} |")
+    L += [
+        "",
+        "## Candidate effects (ranked by score-test evidence)",
+        "",
+        f"| effect | partial R2 | p | fitted | held-out RMSE ({u}) | gain | dBIC | decision | parameters |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    num = lambda v, f: "n/a" if v is None or not np.isfinite(v) else format(v, f)  # no score test: n/a, not nan
+    for c in res["candidates"]:
+        ev = c["evidence"]
+        head = f"| {c['name']} | {num(ev['partial_r2'], '.3f')} | {num(ev['p_value'], '.2g')} |"
+        decision = c.get("decision", c.get("accepted", ""))
+        if c.get("fitted"):
+            par = ", ".join(f"{k}={v:.4g}" if isinstance(v, (int, float)) else f"{k}={v}" for k, v in c["parameters"].items())
+            L.append(
+                f"{head} yes | {c['heldout_rmse']:.4g} | {100 * c['heldout_gain']:.1f} % | "
+                f"{c['delta_bic']:.1f} | {decision} | {par} |"
+            )
+        else:
+            L.append(f"{head} no | | | | {decision} | |")
+    sel = res.get("selection", {})
+    if sel.get("rule") == "calibrated":
+        L += ["", f"Selection rule: {sel['description']}; false-positive rate {sel['false_positive_rate']:g} ({sel['note']})."]
+        for c in res["candidates"]:
+            cal = c.get("calibration", {})
+            if "folds" in cal:
+                fg = ", ".join(f"{100 * f['gain']:+.1f} %" for f in cal["folds"])
+                nl = cal.get("null")
+                nt = (
+                    f"; null gains mean {100 * nl['mean']:.1f} %, max {100 * nl['max']:.1f} %, threshold {100 * nl['threshold']:.1f} %"
+                    if nl
+                    else ""
+                )
+                L.append(f"- {c['name']}: fold gains {fg}{nt}")
+    for w in res.get("warnings", []):
+        L += ["", f"**Warning:** {w}"]
+    s = res.get("strongest_remaining_correlate")
+    if s:
+        L += [
+            "",
+            f"Strongest remaining held-out residual correlate: `{s['signal']}` (corr {s['corr']:+.3f}, p {s['p_value']:.2g}).",
+        ]
+    ux = res.get("unexplained")
+    if ux:
+        c = ux.get("correction", {})
+        L += ["", f"**Unexplained:** {ux['verdict']}."]
+        if "heldout_rmse_after" in c:
+            terms = ", ".join(f"`{k}` {v:+.3g}" for k, v in c["largest_terms_per_sd"].items())
+            L.append(
+                f"The {c['label']} is fitted on the training residual only (ridge {c['ridge']:g}, {c['ridge_rule']}); "
+                f"largest terms per standard deviation of the signal: {terms}. It is not part of `extended_fit.json` "
+                "and did not take part in the selection (`residual_correction.png`)."
+            )
+    d = res.get("deployed")
+    if d:
+        L += [
+            "",
+            f"Deployed models (`base_fit.json`, `extended_fit.json`): the same structures refitted on {d['fitted_on']} "
+            f"({d['n_samples']} samples; RMSE on them: base {d['base_rmse_all']:.4g}, extended {d['extended_rmse_all']:.4g}). "
+            "Use them to predict new data; the held-out figures above are those of the split fits "
+            "(`base_fit_train.json`, `extended_fit_train.json`).",
+        ]
+    L += ["", "Plots: `residuals_before.png` (base model), `residuals_after.png` (extended model), both the split fits.", ""]
+    return "\n".join(L)
+
+
+def write_diagnosis(out, rec, res, base, ext, split):
+    """All outputs of ``smafl diagnose`` into folder ``out``."""
+    from ..diagnosis._diagnose import simulate_segment
+    from ..effects import ExtendedModel
+
+    arrays = res.pop("_residual_arrays", None)
+    deployed = res.pop("_deployed_models", None)
+    atomic_write_json(out / "diagnosis.json", to_jsonable(res))
+    if deployed is None:  # diagnose(refit=False): the split fits are the outputs
+        save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
+        save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
+    else:
+        # *_fit.json: refitted on the whole record, for predicting new data; *_fit_train.json: the split fits that were scored
+        save_model(out / "base_fit.json", deployed[0], **_fit_doc(rec, res, "base", deployed=True))
+        save_model(out / "extended_fit.json", deployed[1], **_fit_doc(rec, res, "extended", deployed=True))
+        save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base"))
+        save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
+    # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
+    wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m
+    ylabel = axis_label(rec.output_name, getattr(rec, "units", None))
+    _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model", ylabel)
+    _plot(
+        out / "residuals_after.png",
+        split,
+        lambda s: simulate_segment(wrap(ext), s),
+        f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})",
+        ylabel,
+    )
+    if arrays is not None and arrays.get("unexplained") is not None:
+        from ..diagnosis._unexplained import plot_correction
+
+        rlabel = ylabel.replace(ylabel.split(" (")[0], "residual", 1)
+        plot_correction(out / "residual_correction.png", arrays["unexplained"], f"{rec.name}: what is left unexplained", rlabel)
+    atomic_write_text(out / "report.md", _report_md(rec, res))
+    if arrays is not None:
+        res["_residual_arrays"] = arrays
+    if deployed is not None:
+        res["_deployed_models"] = deployed
