@@ -268,3 +268,16 @@ def test_cli_sample_on_an_extended_fit(tmp_path, datasets_dir, capsys):
     assert list(summary["parameters"]) == ["base.thermal.k1", "effects[0].tau", "noise.sigma"]
     assert summary["settings"]["priors"]["base.thermal.k1"]["dist"] == "lognormal"
     assert "time_constant_s" in summary["derived"]
+
+
+def test_thermal_of_names_the_stage_in_front_of_the_hysteresis():
+    """`thermal_of` answers "is there a thermal lag in front of the hysteresis?" for every model kind, so callers
+    ask the model instead of testing its class (issue 12)."""
+    from smafl_jax.effects import ExtendedModel
+
+    h = sj.EUPI.from_range(0.0, 1.0)
+    th = sj.JouleThermal()
+    casc = sj.Cascade(thermal=th, hysteresis=h)
+    assert sj.thermal_of(casc) is th and sj.thermal_of(ExtendedModel(casc, ())) is th
+    assert sj.thermal_of(h) is None and sj.thermal_of(ExtendedModel(h, ())) is None
+    assert sj.thermal_of(sj.JouleLag()) is None and sj.thermal_of(th) is None

@@ -46,9 +46,8 @@ from jax.flatten_util import ravel_pytree
 from .. import _config  # noqa: F401
 from .._errors import UserInputError
 from ..identify._fit import as_fit_data, default_trainable
-from ..models._cascade import Cascade
 from ..models._constraints import constrain, log_jacobian, positive, unconstrain
-from ..models._hysteresis import column_weight_scales, hysteresis_of
+from ..models._hysteresis import column_weight_scales, hysteresis_of, thermal_of
 from ..models._simulate import simulate
 from ..models._thermal import JouleThermal
 
@@ -905,7 +904,7 @@ def derived_quantities(posterior, phys):
         out["time_constant_s"] = _stats(1.0 / phys[:, names.index(k1n)])
     if k1n and k2n:
         out["steady_state_gain"] = _stats(phys[:, names.index(k2n)] / phys[:, names.index(k1n)])
-    elif isinstance(posterior.model, Cascade) or isinstance(getattr(posterior.model, "base", None), Cascade):
+    elif thermal_of(posterior.model) is not None:
         out["steady_state_gain"] = {
             "identified": False,
             "note": "k2 does not affect the cascade's displacement (it cancels in "

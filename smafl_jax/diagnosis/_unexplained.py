@@ -258,14 +258,14 @@ def structure_verdict(selected: Sequence[str], whiteness: dict | None, strongest
 
 
 def _segment_columns(model, segs, simulate: Callable, taus) -> dict:
-    from ..models._cascade import Cascade
+    from ..models._hysteresis import thermal_of
     from ._residuals import candidate_signals
 
     cols: dict = {}
     for s in segs:
         yh = simulate(model, s)
         x = None
-        if isinstance(getattr(model, "base", None), Cascade):  # ExtendedModel over a Cascade: thermal signals too
+        if thermal_of(model) is not None:  # a thermal stage in front of the hysteresis: thermal signals too
             import jax.numpy as jnp
 
             x = np.asarray(model.hysteresis_input(jnp.asarray(s.u), jnp.asarray(s.dt)))

@@ -201,7 +201,7 @@ def screen_start(
         raise UserInputError(f"hysteresis input must be auto, voltage or heat, got {sees!r}")
     data = as_fit_data(data)
     signs = {"auto": (1, -1), "rises": (1,), "falls": (-1,)}[orientation]
-    cascade = isinstance(start, Cascade)
+    cascade = isinstance(start, Cascade)  # the screening changes what a Cascade sees and its thermal start
     u_hi = max(float(np.max(np.asarray(d[0]))) for d in data) if cascade else None
     free_start = cascade and thermal_start in ("auto", "fitted") and len(data) == 1
     if cascade:

@@ -9,7 +9,7 @@ entry points, padded calls and trained-range checks.
 from ._cascade import SEES, Cascade
 from ._constraints import POSITIVE_FLOOR, as_float_array, constrain, log_jacobian, parameter, positive, positive_mask, unconstrain
 from ._eupi import EUPI, threshold_grid, tilt_grid
-from ._hysteresis import AbstractHysteresis, column_weight_scales, hysteresis_class, hysteresis_models, hysteresis_of
+from ._hysteresis import AbstractHysteresis, column_weight_scales, hysteresis_class, hysteresis_models, hysteresis_of, thermal_of
 from ._initial_state import INITIAL_STATE_RULES, estimate_initial_state, with_initial_state
 from ._joule_lag import JouleLag
 from ._operators import (
@@ -42,6 +42,7 @@ from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, therm
 __all__ = [
     "AbstractHysteresis",
     "hysteresis_of",
+    "thermal_of",
     "hysteresis_models",
     "hysteresis_class",
     "column_weight_scales",

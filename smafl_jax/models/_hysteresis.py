@@ -47,7 +47,7 @@ import numpy as np
 
 from .. import _config  # noqa: F401
 
-__all__ = ["AbstractHysteresis", "hysteresis_of", "hysteresis_models", "hysteresis_class", "column_weight_scales"]
+__all__ = ["AbstractHysteresis", "hysteresis_of", "thermal_of", "hysteresis_models", "hysteresis_class", "column_weight_scales"]
 
 
 class AbstractHysteresis(eqx.Module):
@@ -168,6 +168,14 @@ def hysteresis_of(model) -> AbstractHysteresis | None:
     """The hysteresis part of ``model`` (the model itself, a cascade's, an extended model's), or None."""
     h = getattr(model, "hysteresis", None)
     return h if isinstance(h, AbstractHysteresis) else None
+
+
+def thermal_of(model):
+    """The thermal stage that feeds ``model``'s hysteresis (a cascade's, an extended model's base cascade's), or None.
+
+    The one place that answers "does this model have a thermal lag in front of its hysteresis?", so callers ask the
+    model instead of testing its class."""
+    return getattr(model, "thermal", None) if hysteresis_of(model) is not None else None
 
 
 def column_weight_scales(h: AbstractHysteresis) -> np.ndarray:
