@@ -79,6 +79,7 @@ def test_registry_is_the_catalogue():
         "output_saturation",
         "load_dependence",
         "strain_accumulation",
+        "sensor_lead",
     ]
     from smafl_jax.effects import Effect  # the old base-class name still imports
 

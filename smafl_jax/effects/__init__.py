@@ -49,6 +49,7 @@ from .protocol import (
     effect_rank,
     register_effect,
 )
+from .sensor_lead import SensorLead  # noqa: F401  (registers sensor_lead, after the catalogue)
 
 #: The built-in catalogue names in catalogue order (`effect_names` also lists effects registered later).
 EFFECT_NAMES = tuple(EFFECTS)

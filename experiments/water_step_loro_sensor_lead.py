@@ -1,0 +1,126 @@
+"""Leave-one-record-out check of `sensor_lead` on the NiTi water-step records (issue 14; copy of water_step_loro.py).
+
+Same protocol as `experiments/water_step_loro.py`: EUPI on temperature_front_C (u_ref = global input minimum) plus
+effects, fitted by `smafl_jax.diagnosis._diagnose.fit_extended` (variable projection) on three whole records and
+simulated free-run over the fourth.  Added here: the `sensor_lead` variants and the ratio of every held-out RMSE to
+that of the static cubic of temperature_front_C fitted on the same training records
+(`smafl_jax.identify._baselines.fit_static_poly`, the baseline of experiments/results/niti_loro_models.md).
+
+Run:  OPENBLAS_NUM_THREADS=1 python experiments/water_step_loro_sensor_lead.py [--data ../shared/data/real]
+      -> experiments/results/water_step_loro_sensor_lead.json and .md
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+VARIANTS = [
+    [],
+    ["sensor_lead"],
+    ["sensor_lag"],
+    ["creep"],
+    ["sensor_lead", "strain_accumulation"],
+    ["creep", "strain_accumulation"],
+    ["sensor_lead", "creep", "strain_accumulation"],
+]
+
+
+def main(argv=None):
+    from smafl_jax import EUPI, atomic_write_json, atomic_write_text, load_record
+    from smafl_jax.diagnosis._diagnose import Split, _effect_params, _metrics_pair, _segment, fit_extended
+    from smafl_jax.identify._baselines import fit_static_poly
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))
+    ap.add_argument("--out", default=str(ROOT / "experiments" / "results" / "water_step_loro_sensor_lead.json"))
+    a = ap.parse_args(argv)
+    t_start = time.time()
+    recs = [
+        load_record(Path(a.data) / f"niti_wire_water_step_0{i}.csv", input="temperature_front_C", output="length_signal")
+        for i in range(1, 5)
+    ]
+    segs = [_segment(r, np.arange(len(r))) for r in recs]
+    u = np.concatenate([r.u for r in recs])
+    base0 = EUPI.from_range(float(u.min()), float(u.max()), u_ref=float(u.min()))
+    rows = []
+    for j in range(4):
+        train = [r for i, r in enumerate(recs) if i != j]
+        poly = fit_static_poly(train)
+        poly_rmse = float(np.sqrt(np.mean((poly.predict(recs[j].u) - recs[j].y) ** 2)))
+        split = Split("record", f"record {j + 1} held out", [s for i, s in enumerate(segs) if i != j], [segs[j]])
+        for eff in VARIANTS:
+            m, info = fit_extended(base0, eff, split)
+            tr, te = _metrics_pair(m, split)
+            row = {
+                "heldout_record": j + 1,
+                "effects": eff,
+                "train_rmse": tr["rmse"],
+                "heldout_rmse": te["rmse"],
+                "heldout_e_r_percent": te["e_r_percent"],
+                "poly3_heldout_rmse": poly_rmse,
+                "ratio_to_poly3": te["rmse"] / poly_rmse,
+                "parameters": {n: _effect_params(m.get(n)) for n in eff},
+                "converged": info["converged"],
+                "seconds": info["seconds"],
+            }
+            rows.append(row)
+            print(
+                f"held out {j + 1} {'+'.join(eff) or 'base':>40s}: train RMSE {tr['rmse']:.3f}, held-out RMSE "
+                f"{te['rmse']:.3f} ({row['ratio_to_poly3']:.2f}x poly3), e_r {te['e_r_percent']:.1f} %  {row['parameters']}",
+                file=sys.stderr,
+                flush=True,
+            )
+    out = Path(a.out)
+    atomic_write_json(out, rows)
+    atomic_write_text(out.with_suffix(".md"), markdown(rows, time.time() - t_start, a.data))
+
+
+def markdown(rows, seconds, data):
+    names = ["+".join(v) or "base" for v in VARIANTS]
+    cell = {("+".join(r["effects"]) or "base", r["heldout_record"]): r for r in rows}
+    L = [
+        "# NiTi water steps: leave-one-record-out with sensor_lead (issue 14)",
+        "",
+        f"Command: `OPENBLAS_NUM_THREADS=1 python experiments/water_step_loro_sensor_lead.py` ({seconds:.0f} s wall, shared "
+        f"2-core machine). Data read in place from {data} (github.com/spikelucky/master_thesis_matlab, commit bb48dc19, "
+        "files hyd_stp_N.txt).",
+        "",
+        "EUPI on temperature_front_C plus effects, `fit_extended` on three whole records, free run over the fourth (no "
+        "calibration). Cells: held-out RMSE / e_r / ratio to the static cubic of temperature_front_C fitted on the same "
+        "three records.",
+        "",
+        "| model | " + " | ".join(f"water_step_0{j}" for j in range(1, 5)) + " | median ratio |",
+        "|---|" + "---|" * 5,
+    ]
+    p = [cell[("base", j)]["poly3_heldout_rmse"] for j in range(1, 5)]
+    L.append("| poly3 | " + " | ".join(f"{x:.3f} / - / 1.00x" for x in p) + " | 1.00 |")
+    for n in names:
+        cs = [cell[(n, j)] for j in range(1, 5)]
+        med = float(np.median([c["ratio_to_poly3"] for c in cs]))
+        L.append(
+            f"| {n} | "
+            + " | ".join(f"{c['heldout_rmse']:.3f} / {c['heldout_e_r_percent']:.0f} % / {c['ratio_to_poly3']:.2f}x" for c in cs)
+            + f" | {med:.2f} |"
+        )
+    L += ["", "## fitted effect parameters", ""]
+    for n in names:
+        if n == "base":
+            continue
+        L.append(f"- {n}: " + "; ".join(f"0{j}: {_fmt(cell[(n, j)]['parameters'])}" for j in range(1, 5)))
+    return "\n".join(L) + "\n"
+
+
+def _fmt(params):
+    return ", ".join(f"{e} " + " ".join(f"{k} {v:.3g}" for k, v in p.items()) for e, p in params.items())
+
+
+if __name__ == "__main__":
+    main()
