@@ -37,7 +37,7 @@ def run_one(args):
     truth = sj.load_model(ROOT / "datasets" / "truth.json")
     rec, true = synthetic_effect_record(truth, _gen().drives(), effect, seed)
     t0 = time.time()
-    res, *_ = diagnose(rec, verbose=False)
+    res = diagnose(rec, verbose=False).report
     return {
         "true": effect or "none",
         "seed": seed,

@@ -31,7 +31,8 @@ def main(argv=None):
     rows = []
     for r in (0, 1, 2):
         print(f"== fold: label % 3 == {r} held out", file=sys.stderr)
-        res, base, ext, split = diagnose(rec, holdout_residue=r, verbose=True)
+        diag = diagnose(rec, holdout_residue=r, verbose=True)
+        res, base, split = diag.report, diag.base, diag.split
         row = {
             "holdout_residue": r,
             "heldout_branches": split.test_labels,

@@ -41,7 +41,7 @@ def run_one(name, seed, folder, n_null, fpr):
     path, case = ie.write_effect_record(folder, name, seed)
     rec = sj.load_record(path)
     t0 = time.time()
-    res, *_ = diagnose(rec, refit=False, verbose=True, rule="calibrated", compare_legacy=True, n_null=n_null, fpr=fpr)
+    res = diagnose(rec, refit=False, verbose=True, rule="calibrated", compare_legacy=True, n_null=n_null, fpr=fpr).report
     noise = case["noise_rms_measured"]
     return {
         "truth": name,
@@ -137,9 +137,9 @@ def fpr_check(n_records, n_null, fpr, seed=0):
     for k in range(n_records):
         y = y0 + 0.003 * np.random.default_rng([seed, k]).standard_normal(u.size)
         rec = sj.Record.from_arrays(np.arange(u.size) * 0.5, u, y, input_name="temperature_C", output_name="displacement_mm")
-        res, *_ = diagnose(
+        res = diagnose(
             rec, effects=["strain_accumulation"], refit=False, verbose=False, min_gain=0.0, n_null=n_null, fpr=fpr, seed=k
-        )
+        ).report
         c = res["candidates"][0]
         out.append({"selected": res["selected"], "gates": c.get("calibration", {}).get("gates"), "gain": c.get("heldout_gain")})
         print(f"fpr check {k}: selected {res['selected'] or 'none'}, gates {out[-1]['gates']}", file=sys.stderr, flush=True)

@@ -41,10 +41,11 @@ def main(argv=None):
             continue
         rec = load_record(path, input=inp, output=outp)
         print(f"== {name}", file=sys.stderr)
-        res, base, ext, split = diagnose(rec, verbose=True)
+        diag = diagnose(rec, verbose=True)
+        res = diag.report
         d = out / path.stem
         d.mkdir(exist_ok=True)
-        write_diagnosis(d, rec, res, base, ext, split)
+        write_diagnosis(d, rec, diag)
         rows.append(
             {
                 "record": name,

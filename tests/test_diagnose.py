@@ -273,7 +273,7 @@ def test_strain_accumulation_c_is_profiled(truth, drives):
 
 def test_diagnosis_finds_strain_accumulation(truth, drives):
     rec, true = synthetic_effect_record(truth, drives, "strain_accumulation", seed=6)
-    res, *_ = diagnose(rec, max_candidates=2, refit=False, verbose=False, rule="legacy")
+    res = diagnose(rec, max_candidates=2, refit=False, verbose=False, rule="legacy").report
     assert res["selected"] == ["strain_accumulation"]
     assert res["extended"]["heldout_rmse"] < 2.0 * 0.003 < 0.5 * res["base"]["heldout_rmse"]
     p = res["extended"]["parameters"]["strain_accumulation"]
@@ -372,7 +372,7 @@ def test_residual_statistics(rng):
 
 def test_diagnosis_finds_creep(truth, drives):
     rec, true = synthetic_effect_record(truth, drives, "creep", seed=7)
-    res, base, ext, split = diagnose(rec, max_candidates=2, verbose=False, rule="legacy")
+    res = diagnose(rec, max_candidates=2, verbose=False, rule="legacy").report
     assert res["selected"] == ["creep"]
     assert res["extended"]["heldout_rmse"] < 0.5 * res["base"]["heldout_rmse"]
     assert res["extended"]["heldout_rmse"] < 2.0 * 0.003  # back to the noise level
@@ -423,7 +423,7 @@ def test_cli_bad_inputs(tmp_path, capsys):
 @pytest.mark.parametrize("effect", [None, *EFFECT_NAMES])
 def test_confusion_row(truth, drives, effect):
     rec, _ = synthetic_effect_record(truth, drives, effect, seed=11)
-    res, *_ = diagnose(rec, verbose=False, rule="legacy")
+    res = diagnose(rec, verbose=False, rule="legacy").report
     if effect is None:
         assert res["selected"] == []
     else:
@@ -457,14 +457,15 @@ def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
 
     rec = _preisach_forc_record(10.0, True)
     # legacy rule: the calibrated one refits the Preisach (inner CV) on every fold and null record (minutes)
-    res, base, ext, split = diagnose(rec, effects=["nonlocal_memory"], verbose=False, rule="legacy")
-    assert res["selected"] == ["nonlocal_memory"] and isinstance(ext, sj.Preisach)
+    diag = diagnose(rec, effects=["nonlocal_memory"], verbose=False, rule="legacy")
+    res, ext, split = diag.report, diag.extended, diag.split
+    assert diag.selected == ("nonlocal_memory",) and res["selected"] == ["nonlocal_memory"] and isinstance(ext, sj.Preisach)
     cand = res["candidates"][-1]
     assert cand["name"] == "nonlocal_memory" and cand["accepted"]
     assert 0 < cand["parameters"]["effective_dof"] <= ext.n_relays + 1  # BIC counts trace(H), not the nominal weights
     assert res["extended"]["heldout_rmse"] < 0.5 * res["base"]["heldout_rmse"]
     # the deployed Preisach (inner CV rerun over every branch) is written, loads, and fits the whole record at least as well
-    write_diagnosis(tmp_path, rec, res, base, ext, split)
+    write_diagnosis(tmp_path, rec, diag)
     dep, train_fit = sj.load_model(tmp_path / "extended_fit.json"), sj.load_model(tmp_path / "extended_fit_train.json")
     assert isinstance(dep, sj.Preisach) and isinstance(train_fit, sj.Preisach) and float(dep.width) > 0
     d = res["deployed"]
@@ -489,7 +490,7 @@ def test_nonlocal_memory_not_offered_with_dynamics():
     with pytest.raises(UserInputError, match=r"rate-free records only.*nothing left to test"):
         diagnose(rec, effects=["nonlocal_memory"], verbose=False)
     # beside an applicable effect it is dropped with a warning in the result
-    res, _, _, _ = diagnose(rec, effects=["nonlocal_memory", "delay"], max_candidates=1, refit=False, verbose=False)
+    res = diagnose(rec, effects=["nonlocal_memory", "delay"], max_candidates=1, refit=False, verbose=False).report
     assert all(c["name"] != "nonlocal_memory" for c in res["candidates"])
     assert any("nonlocal_memory" in w and "rate-free" in w for w in res["warnings"])
 
@@ -570,7 +571,8 @@ def test_calibrated_rule_accepts_a_real_effect_and_reports_folds_and_nulls(truth
     from smafl_jax.report._report import write_diagnosis
 
     rec = _eupi_accumulation_record(truth, drives, 0.15, seed=21)
-    res, base, ext, split = diagnose(rec, effects=["strain_accumulation"], refit=False, verbose=False, n_null=6, seed=3)
+    diag = diagnose(rec, effects=["strain_accumulation"], refit=False, verbose=False, n_null=6, seed=3)
+    res = diag.report
     assert res["selected"] == ["strain_accumulation"]
     cal = res["candidates"][0]["calibration"]
     assert cal["accepted"] and all(cal["gates"].values()) and set(cal["gates"]) == {"gain", "max_error", "folds", "null"}
@@ -580,17 +582,70 @@ def test_calibrated_rule_accepts_a_real_effect_and_reports_folds_and_nulls(truth
     assert cal["gain"] > nl["threshold"] >= max(nl["gains"])
     assert res["selection"]["rule"] == "calibrated" and res["selection"]["false_positive_rate"] == 0.01
     # the report: one decision per candidate, no 'nan', the fold gains and null threshold shown
-    write_diagnosis(tmp_path, rec, res, base, ext, split)
+    write_diagnosis(tmp_path, rec, diag)
     md = (tmp_path / "report.md").read_text()
     assert "nan" not in md and "| selected |" in md and "fold gains" in md and "threshold" in md
+
+
+def test_diagnosis_object_is_typed_and_its_json_has_no_private_keys(truth, drives, tmp_path):
+    """`diagnose` returns a `Diagnosis`: typed fields, residual arrays that give the reported RMSEs, and a strict-JSON
+    report (no private keys) equal to the diagnosis.json `write_diagnosis` writes."""
+    import dataclasses
+    import typing
+
+    from smafl_jax.diagnosis import Diagnosis, ResidualArrays, Split
+    from smafl_jax.report._report import write_diagnosis
+
+    assert sj.Diagnosis is Diagnosis
+    rec = _eupi_accumulation_record(truth, drives, 0.15, seed=23)
+    diag = diagnose(rec, effects=["strain_accumulation"], verbose=False, n_null=2, seed=0)
+    assert isinstance(diag, Diagnosis) and not isinstance(diag, tuple | list | dict)
+    hints = typing.get_type_hints(Diagnosis)
+    assert set(hints) == {f.name for f in dataclasses.fields(Diagnosis)} and typing.Any not in hints.values()
+    assert isinstance(diag.selected, tuple) and all(isinstance(n, str) for n in diag.selected)
+    assert list(diag.selected) == diag.report["selected"]
+    assert isinstance(diag.split, Split) and isinstance(diag.report, dict) and isinstance(diag.residuals, ResidualArrays)
+    for m in (diag.base, diag.extended, diag.deployed_base, diag.deployed_extended):
+        assert isinstance(m, eqx.Module)
+    assert type(diag.base).__name__ == "EUPI" and diag.model is diag.deployed_extended
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        diag.selected = ()
+    # the arrays are the residuals behind the reported figures
+    r = diag.residuals
+    for a in (r.base_train, r.base_heldout, r.extended_train, r.extended_heldout):
+        assert isinstance(a, np.ndarray) and a.ndim == 1 and np.all(np.isfinite(a))
+    rms = lambda e: float(np.sqrt(np.mean(e**2)))
+    assert rms(r.base_heldout) == pytest.approx(diag.heldout_rmse_before, rel=1e-9)
+    assert rms(r.extended_heldout) == pytest.approx(diag.heldout_rmse_after, rel=1e-9)
+    assert diag.heldout_rmse_before == diag.report["base"]["heldout_rmse"]
+    assert diag.candidates is diag.report["candidates"] and diag.unexplained is diag.report["unexplained"]
+    # to_json_dict: strict JSON, no private key at any depth, a fresh copy, the file's content
+    doc = diag.to_json_dict()
+
+    def keys(x):
+        if isinstance(x, dict):
+            for k, v in x.items():
+                yield k
+                yield from keys(v)
+        elif isinstance(x, list):
+            for v in x:
+                yield from keys(v)
+
+    assert not [k for k in keys(doc) if str(k).startswith("_")]
+    assert json.loads(json.dumps(doc, allow_nan=False)) == doc
+    doc["selected"].append("x")
+    assert diag.report["selected"] == list(diag.selected)
+    write_diagnosis(tmp_path, rec, diag)
+    assert json.loads((tmp_path / "diagnosis.json").read_text()) == diag.to_json_dict()
+    assert "Diagnosis(selected=" in repr(diag)
 
 
 def test_calibrated_rule_rejects_on_a_clean_record(truth, drives):
     """No effect in the data: even with no minimum gain the gates (max error, folds, null records) select nothing."""
     rec = _eupi_accumulation_record(truth, drives, 0.0, seed=22)
-    res, *_ = diagnose(
+    res = diagnose(
         rec, effects=["strain_accumulation"], refit=False, verbose=False, min_gain=0.0, n_null=6, p_threshold=1.0
-    )  # p_threshold 1: fitted and gated even without score-test evidence
+    ).report  # p_threshold 1: fitted and gated even without score-test evidence
     assert res["selected"] == [] and res["candidates"][0]["decision"].startswith("rejected: ")
     assert res["extended"]["heldout_rmse"] == res["base"]["heldout_rmse"]
 

@@ -136,9 +136,12 @@ def test_diagnose_reports_unexplained_without_changing_the_selection(tmp_path):
         np.arange(u.size) * dt, u, y, input_name="temperature_C", output_name="displacement_mm", extra={"humidity": humidity}
     )
     kw = dict(effects=["strain_accumulation"], refit=False, verbose=False, n_null=3, seed=1)
-    res, base, ext, split = diagnose(rec, **kw)
-    res0, *_ = diagnose(rec, unexplained=False, **kw)
-    assert "unexplained" not in res0
+    diag = diagnose(rec, **kw)
+    res, split = diag.report, diag.split
+    diag0 = diagnose(rec, unexplained=False, **kw)
+    res0 = diag0.report
+    assert "unexplained" not in res0 and diag0.unexplained is None and diag0.residuals.correction is None
+    assert diag.unexplained is res["unexplained"] and diag.residuals.correction is not None
     assert res["selected"] == res0["selected"]
     assert [c.get("decision") for c in res["candidates"]] == [c.get("decision") for c in res0["candidates"]]
     assert res["extended"]["heldout_rmse"] == res0["extended"]["heldout_rmse"]
@@ -150,10 +153,10 @@ def test_diagnose_reports_unexplained_without_changing_the_selection(tmp_path):
     # the held-out residual also holds the base model's own misfit (its weights soaked part of the humidity term in
     # training): the bar is what subtracting the true term would leave
     h = np.concatenate([s.extra["humidity"][s.mask] for s in split.test])
-    oracle = np.sqrt(np.mean((res["_residual_arrays"]["ext_heldout"] - 0.002 * (h - 50.0)) ** 2))
+    oracle = np.sqrt(np.mean((diag.residuals.extended_heldout - 0.002 * (h - 50.0)) ** 2))
     assert c["heldout_rmse_after"] < min(1.5 * oracle, 0.7 * c["heldout_rmse_before"]) and c["predictable"], (oracle, c)
     assert next(iter(c["largest_terms_per_sd"])) == "extra:humidity" and c["coefficients"]["extra:humidity"] > 0
-    write_diagnosis(tmp_path, rec, res, base, ext, split)
+    write_diagnosis(tmp_path, rec, diag)
     doc = json.loads((tmp_path / "diagnosis.json").read_text())
     assert doc["unexplained"]["correction"]["heldout_rmse_after"] == pytest.approx(c["heldout_rmse_after"])
     assert (tmp_path / "residual_correction.png").stat().st_size > 0

@@ -82,7 +82,7 @@ def run(args):
     check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)
 
-    res, base, ext, split = diagnose(
+    diag = diagnose(
         rec,
         effects=args.effects,
         max_candidates=args.max_candidates,
@@ -97,19 +97,19 @@ def run(args):
         screen=args.base_start == "screened",
         unexplained=not args.no_unexplained,
     )
-    write_diagnosis(out, rec, res, base, ext, split)
-    warning = res["split"].get("coverage", {}).get("warning")
+    write_diagnosis(out, rec, diag)
+    warning = diag.report["split"].get("coverage", {}).get("warning")
     if warning:
         print(f"warning: {warning}", file=sys.stderr)
-    for w in res.get("warnings", []):
+    for w in diag.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    sel = ", ".join(res["selected"]) or "none"
-    if res.get("ambiguous"):
-        sel += f" (ambiguous with {', '.join(n for n in res['ambiguous'] if n not in res['selected'])})"
+    sel = ", ".join(diag.selected) or "none"
+    if diag.ambiguous:
+        sel += f" (ambiguous with {', '.join(n for n in diag.ambiguous if n not in diag.selected)})"
     print(
-        f"selected: {sel}; held-out RMSE {res['base']['heldout_rmse']:.4g} -> {res['extended']['heldout_rmse']:.4g} "
-        f"(e_r {res['base']['heldout']['e_r_percent']:.2f} % -> {res['extended']['heldout']['e_r_percent']:.2f} %); wrote {out}"
+        f"selected: {sel}; held-out RMSE {diag.heldout_rmse_before:.4g} -> {diag.heldout_rmse_after:.4g} "
+        f"(e_r {diag.heldout_e_r_before:.2f} % -> {diag.heldout_e_r_after:.2f} %); wrote {out}"
     )
-    if res.get("unexplained"):
-        print(f"unexplained: {res['unexplained']['verdict']}")
+    if diag.unexplained:
+        print(f"unexplained: {diag.unexplained['verdict']}")
     return 0

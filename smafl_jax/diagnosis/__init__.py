@@ -14,6 +14,7 @@ from ._residuals import (
     signal_correlations,
     whiteness_report,
 )
+from ._result import Diagnosis, ResidualArrays
 from ._unexplained import (
     LABEL,
     apply_correction,
@@ -34,6 +35,8 @@ __all__ = [
     "fit_extended",
     "effect_evidence",
     "diagnose",
+    "Diagnosis",
+    "ResidualArrays",
     "Segment",
     "Split",
     "autocorrelation",

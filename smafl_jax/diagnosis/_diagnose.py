@@ -52,6 +52,7 @@ from __future__ import annotations
 import dataclasses
 import sys
 import time
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
@@ -70,6 +71,9 @@ from ..models._padding import padded_call
 from ..models._preisach import Preisach, cv_fit_preisach
 from ..models._thermal import JouleThermal
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
+
+if TYPE_CHECKING:
+    from ._result import Diagnosis
 
 __all__ = ["choose_base", "make_split", "fit_extended", "effect_evidence", "diagnose", "Segment", "Split"]
 
@@ -1100,24 +1104,24 @@ def diagnose(
     compare_legacy=False,
     screen=True,
     unexplained=True,
-):
-    """Full diagnosis of one record; returns ``(result_dict, base_model, extended_model, split)``.
+) -> Diagnosis:
+    """Full diagnosis of one record; returns a `Diagnosis` (selected effects, models, split, diagnosis.json content).
 
     ``screen``: the base model's output orientation, hysteresis input and thermal start are first screened
     on the training samples as `smafl fit` does (`screened_base`); False keeps the fixed start of earlier versions.
 
-    The returned models are fitted on the training part of the split (the
+    ``Diagnosis.base`` / ``.extended`` are fitted on the training part of the split (the
     held-out figures are theirs).  With ``refit`` the selected structure is
-    also refitted on the whole record (`refit_whole_record`): ``result["deployed"]``
-    and, for `write_diagnosis`, ``result["_deployed_models"]``.
+    also refitted on the whole record (`refit_whole_record`): ``report["deployed"]``
+    and ``Diagnosis.deployed_base`` / ``.deployed_extended``.
 
     ``rule="calibrated"`` (default, issue 13) accepts an effect only through `calibration_gates` (held-out gain
     >= ``min_gain``, max error not raised, gain positive in all or all but one of ``n_folds`` folds, gain above
     the (1 - ``fpr``) quantile of ``n_null`` parametric-bootstrap null records; ``seed`` seeds the nulls);
     ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC);
-    ``compare_legacy`` also records what it would select (``result["selection"]["legacy_selected"]``).
+    ``compare_legacy`` also records what it would select (``report["selection"]["legacy_selected"]``).
 
-    ``unexplained`` (after the selection, never changing it): ``result["unexplained"]`` says whether the held-out
+    ``unexplained`` (after the selection, never changing it): ``report["unexplained"]`` says whether the held-out
     residual still has structure, names its strongest correlate and scores a generic, clearly labelled ridge
     regression of the residual on the candidate signals, fitted on the training residual (`smafl_jax.diagnosis._unexplained`).
     """
@@ -1335,16 +1339,11 @@ def diagnose(
         },
         "seconds": time.time() - t_start,
     }
-    result["_residual_arrays"] = {
-        "base_train": res_tr,
-        "base_heldout": res_te,
-        "ext_train": ext_res_tr,
-        "ext_heldout": ext_res_te,
-    }
+    correction = None
     if unexplained:
         from ._unexplained import unexplained_report
 
-        result["unexplained"], result["_residual_arrays"]["unexplained"] = unexplained_report(
+        result["unexplained"], correction = unexplained_report(
             chosen,
             split,
             ext_res_tr,
@@ -1357,11 +1356,22 @@ def diagnose(
         )
         _log(f"unexplained: {result['unexplained']['verdict']}", verbose)
     unwrapped = chosen if selected else base.base
+    base_all = ext_all = None
     if refit:
         base_all, ext_all, info = refit_whole_record(record, base.base, unwrapped, result, verbose)
         result["deployed"] = info
-        result["_deployed_models"] = (base_all, ext_all)
-    return result, base.base, unwrapped, split
+    from ._result import Diagnosis, ResidualArrays  # here: _result imports Split from this module
+
+    return Diagnosis(
+        selected=tuple(selected),
+        base=base.base,
+        extended=unwrapped,
+        split=split,
+        report=result,
+        residuals=ResidualArrays(res_tr, res_te, ext_res_tr, ext_res_te, correction),
+        deployed_base=base_all,
+        deployed_extended=ext_all,
+    )
 
 
 def _preisach_params(info):

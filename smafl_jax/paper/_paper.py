@@ -695,18 +695,18 @@ def section_diagnosis(recs, out, quick, real):
         # the threshold is then a cruder normal approximation, which the diagnosis report states)
         # --quick: no whole-record refit either (the report uses the split fits' held-out figures; the folder then
         # holds the split fits as base_fit.json / extended_fit.json)
-        res, base, ext, split = diagnose(rec, verbose=False, refit=not quick, **({"n_null": 4} if quick else {}))
-        write_diagnosis(sub, rec, res, base, ext, split)
+        diag = diagnose(rec, verbose=False, refit=not quick, **({"n_null": 4} if quick else {}))
+        write_diagnosis(sub, rec, diag)
         rows.append(
             {
                 "record": label,
                 "file": rec.name,
-                "selected": list(res["selected"]),
-                "base_heldout_rmse": res["base"]["heldout_rmse"],
-                "extended_heldout_rmse": res["extended"]["heldout_rmse"],
-                "base_heldout_e_r_percent": res["base"]["heldout"]["e_r_percent"],
-                "extended_heldout_e_r_percent": res["extended"]["heldout"]["e_r_percent"],
-                "split": getattr(split, "kind", None),
+                "selected": list(diag.selected),
+                "base_heldout_rmse": diag.report["base"]["heldout_rmse"],
+                "extended_heldout_rmse": diag.report["extended"]["heldout_rmse"],
+                "base_heldout_e_r_percent": diag.report["base"]["heldout"]["e_r_percent"],
+                "extended_heldout_e_r_percent": diag.report["extended"]["heldout"]["e_r_percent"],
+                "split": diag.split.kind,
                 "output_unit": unit_of(rec.output_name, getattr(rec, "units", None)) or f"units of '{rec.output_name}'",
                 "folder": sub.name,
                 "figures": sorted(str(p) for p in sub.glob("*.png")),

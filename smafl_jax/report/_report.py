@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from .._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model, to_jsonable
+from .._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model
 from ._provenance import record_data, versions
 from ._reportdoc import axis_label, unit_of
+
+if TYPE_CHECKING:
+    from ..data._data import Record
+    from ..diagnosis._result import Diagnosis
 
 __all__ = ["write_diagnosis", "versions"]
 
@@ -186,21 +193,20 @@ def _report_md(rec, res):
     return "\n".join(L)
 
 
-def write_diagnosis(out, rec, res, base, ext, split):
-    """All outputs of ``smafl diagnose`` into folder ``out``."""
+def write_diagnosis(out: Path, rec: Record, diagnosis: Diagnosis) -> None:
+    """All outputs of ``smafl diagnose`` into folder ``out``, from `diagnose`'s `Diagnosis` of record ``rec``."""
     from ..diagnosis._diagnose import simulate_segment
     from ..effects import ExtendedModel
 
-    arrays = res.pop("_residual_arrays", None)
-    deployed = res.pop("_deployed_models", None)
-    atomic_write_json(out / "diagnosis.json", to_jsonable(res))
-    if deployed is None:  # diagnose(refit=False): the split fits are the outputs
+    res, base, ext, split = diagnosis.report, diagnosis.base, diagnosis.extended, diagnosis.split
+    atomic_write_json(out / "diagnosis.json", diagnosis.to_json_dict())
+    if diagnosis.deployed_extended is None:  # diagnose(refit=False): the split fits are the outputs
         save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
         save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
     else:
         # *_fit.json: refitted on the whole record, for predicting new data; *_fit_train.json: the split fits that were scored
-        save_model(out / "base_fit.json", deployed[0], **_fit_doc(rec, res, "base", deployed=True))
-        save_model(out / "extended_fit.json", deployed[1], **_fit_doc(rec, res, "extended", deployed=True))
+        save_model(out / "base_fit.json", diagnosis.deployed_base, **_fit_doc(rec, res, "base", deployed=True))
+        save_model(out / "extended_fit.json", diagnosis.deployed_extended, **_fit_doc(rec, res, "extended", deployed=True))
         save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base"))
         save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
     # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
@@ -211,16 +217,14 @@ def write_diagnosis(out, rec, res, base, ext, split):
         out / "residuals_after.png",
         split,
         lambda s: simulate_segment(wrap(ext), s),
-        f"{rec.name}: extended ({', '.join(res['selected']) or 'none'})",
+        f"{rec.name}: extended ({', '.join(diagnosis.selected) or 'none'})",
         ylabel,
     )
-    if arrays is not None and arrays.get("unexplained") is not None:
+    if diagnosis.residuals.correction is not None:
         from ..diagnosis._unexplained import plot_correction
 
         rlabel = ylabel.replace(ylabel.split(" (")[0], "residual", 1)
-        plot_correction(out / "residual_correction.png", arrays["unexplained"], f"{rec.name}: what is left unexplained", rlabel)
+        plot_correction(
+            out / "residual_correction.png", diagnosis.residuals.correction, f"{rec.name}: what is left unexplained", rlabel
+        )
     atomic_write_text(out / "report.md", _report_md(rec, res))
-    if arrays is not None:
-        res["_residual_arrays"] = arrays
-    if deployed is not None:
-        res["_deployed_models"] = deployed
