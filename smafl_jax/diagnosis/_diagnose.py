@@ -67,6 +67,7 @@ from ..effects import EFFECTS, ExtendedModel, Log, effect_rank
 from ..identify._metrics import metrics
 from ..models._cascade import Cascade
 from ..models._eupi import EUPI
+from ..models._hysteresis import thermal_of
 from ..models._padding import padded_call
 from ..models._preisach import Preisach, cv_fit_preisach
 from ..models._thermal import JouleThermal
@@ -193,7 +194,7 @@ def _not_applicable_reason(name, base, rate_free, split):
             f"{RATE_FREE_DT:g} s); this record has dynamics (sample time {split.train[0].dt:g} s, no 'branch' column)"
         )
     cls = EFFECTS[name]
-    if "thermal" in cls.needs and not isinstance(base, Cascade):
+    if "thermal" in cls.needs and thermal_of(base) is None:
         return "it acts on the Joule thermal model, and this record's base model has none (not a voltage input with dynamics)"
     if "time" in cls.needs and rate_free:
         return "it needs time dynamics, and this record is rate-free"
@@ -440,7 +441,7 @@ def _phi_layout(model, ctx):
     trade off (a cold start looks like a slow lag), so holding one while moving the other biases both.
     """
     lay = []
-    if isinstance(model.base, Cascade):
+    if thermal_of(model) is not None:
         lay.append((None, "k1", _K1, _K1_STEP))
         th = model.base.thermal
         if th.init == "given" and th.u0 is not None:
@@ -490,7 +491,7 @@ def applicable_effects(base, split, rate_free):
     out = []
     has_load = all(s.load is not None for s in split.train + split.test)
     for name, cls in EFFECTS.items():
-        if "thermal" in cls.needs and not isinstance(base, Cascade):
+        if "thermal" in cls.needs and thermal_of(base) is None:
             continue
         if "time" in cls.needs and rate_free:
             continue
@@ -536,7 +537,7 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     for combo in _product([_effect_grid(n, ctx) for n in new]):
         m = ExtendedModel(start.base, tuple(sorted(tuple(start.effects) + tuple(combo), key=lambda e: effect_rank(e.name))))
         starts.append(m)
-    if k1_grid is not None and isinstance(start.base, Cascade):
+    if k1_grid is not None and thermal_of(start) is not None:
         starts = [eqx.tree_at(lambda m: m.base.thermal.k1, c, jnp.asarray(k)) for c in starts for k in k1_grid]
     t0 = time.time()
     scored = sorted(((profile_gains(m, split.train)[1], i) for i, m in enumerate(starts)), key=lambda t: t[0])
@@ -631,7 +632,7 @@ def effect_evidence(model, split, names, residual):
     seg_y = [simulate_segment(model, s) for s in split.train]
     base_cols = [np.asarray(_features(model, jnp.asarray(s.u), jnp.asarray(s.dt)))[s.mask] for s in split.train]
     B = np.concatenate(base_cols)
-    if isinstance(model.base, Cascade):
+    if thermal_of(model) is not None:
         k1 = model.base.thermal.k1
         pert = eqx.tree_at(lambda m: m.base.thermal.k1, model, k1 * 1.01)
         dk = np.concatenate([(simulate_segment(pert, s) - y0)[s.mask] for s, y0 in zip(split.train, seg_y)])
@@ -800,7 +801,7 @@ def _fit_on(name, start, split, record, *, new):
         return start
     if new:
         have = list(start.effect_names) if isinstance(start, ExtendedModel) else []
-        n_par = len(EFFECTS[name].nonlinear(_context(split))) + len(have) + (1 if isinstance(start.base, Cascade) else 0)
+        n_par = len(EFFECTS[name].nonlinear(_context(split))) + len(have) + (1 if thermal_of(start) is not None else 0)
         return fit_extended(start, have + [name], split, max_iter=NULL_MAX_ITER_PER_PARAMETER * max(n_par, 1))[0]
     return profile_gains(start, split.train)[0]
 
@@ -1159,7 +1160,7 @@ def diagnose(
         f"diagnose: {len(record)} samples, base {type(base0).__name__}, split {split.kind}, {len(names)} applicable effects",
         verbose,
     )
-    k1_grid = (0.01, 0.03, 0.1, 0.3) if isinstance(base0, Cascade) else None
+    k1_grid = (0.01, 0.03, 0.1, 0.3) if thermal_of(base0) is not None else None
     screened = None
     if screen:
         base0, screened = screened_base(base0, split, verbose)
@@ -1178,7 +1179,7 @@ def diagnose(
         sigs = {}
         for s in segs:
             yh = simulate_segment(base, s)
-            x = np.asarray(base.hysteresis_input(jnp.asarray(s.u), jnp.asarray(s.dt))) if isinstance(base.base, Cascade) else None
+            x = np.asarray(base.hysteresis_input(jnp.asarray(s.u), jnp.asarray(s.dt))) if thermal_of(base) is not None else None
             cs = candidate_signals(s.time, s.u, yh, s.dt, x=x, extra=s.extra)
             for k, v in cs.items():
                 sigs.setdefault(k, []).append(v[s.mask])
