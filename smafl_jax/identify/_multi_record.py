@@ -139,19 +139,12 @@ def _combined(records):
 
 def _joint_fit(records, *, model, solver, max_steps, thresholds, tilts, grid, orientation, thermal_start, sees="auto", progress):
     """The model choice of `fit_record` on several records (all samples train); returns ``(FitResult, info)``."""
-    from ..report._report_fit import build_model
-    from ._choose import auto_structure, screen_start
+    from ..report._report_fit import structure_start
+    from ._choose import screen_start
     from ._fit import default_trainable, fit
 
     combo = _combined(records)
-    notes = []
-    structure = model
-    if model == "auto":
-        structure, why = auto_structure(combo)
-        notes.append(f"model auto -> {structure}: {why}")
-    thresholds = (model == "auto") if thresholds is None else bool(thresholds)
-    tilts = (model == "auto") if tilts is None else bool(tilts)
-    start = build_model(structure, combo, **(grid or {}))
+    structure, thresholds, tilts, start, notes = structure_start(model, combo, thresholds, tilts, grid)
     weights = [np.ones(len(r)) for r in records]
     screening, init, screen_info = None, "auto", {}
     if structure in ("eupi", "cascade"):

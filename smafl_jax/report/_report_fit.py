@@ -72,6 +72,19 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
     raise UserInputError(f"unknown model {kind!r}; choose one of {MODELS}")
 
 
+def structure_start(model, record, thresholds, tilts, grid):
+    """``(structure, thresholds, tilts, untrained start, notes)``: the model choice shared by `fit_record` and the
+    multi-record fit (``model="auto"`` picks the structure from the input and trains thresholds and tilts)."""
+    notes = []
+    structure = model
+    if model == "auto":
+        structure, why = auto_structure(record)
+        notes.append(f"model auto -> {structure}: {why}")
+    thresholds = (model == "auto") if thresholds is None else bool(thresholds)
+    tilts = (model == "auto") if tilts is None else bool(tilts)
+    return structure, thresholds, tilts, build_model(structure, record, **(grid or {})), notes
+
+
 def fit_record(
     record,
     *,
@@ -101,14 +114,7 @@ def fit_record(
         raise UserInputError(f"{record.path}: no output column to fit")
     if solver not in SOLVERS:
         raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
-    notes = []
-    structure = model
-    if model == "auto":
-        structure, why = auto_structure(record)
-        notes.append(f"model auto -> {structure}: {why}")
-    thresholds = (model == "auto") if thresholds is None else bool(thresholds)
-    tilts = (model == "auto") if tilts is None else bool(tilts)
-    start = build_model(structure, record, **(grid or {}))
+    structure, thresholds, tilts, start, notes = structure_start(model, record, thresholds, tilts, grid)
     train, val, split_info = split_masks(record, split, val_fraction=val_fraction)
     # long Joule-driven records are fitted on a block-RMS view (see _decimate); metrics stay at the full rate
     rec, (tr, va), view_info = fit_view(record, start, [train, val])
