@@ -18,7 +18,12 @@ def add_parser(sub):
     p.add_argument(
         "--effects", nargs="+", default=None, help="restrict the candidate effects (catalogue names); default: all applicable"
     )
-    p.add_argument("--max-candidates", type=int, default=3, help="fit at most this many plausible effects (default 3)")
+    p.add_argument(
+        "--max-candidates",
+        type=int,
+        default=None,
+        help="fit at most this many plausible effects, best score-test evidence first (default: every applicable effect)",
+    )
     p.add_argument(
         "--min-gain", type=float, default=0.05, help="relative held-out RMSE reduction an effect must bring (default 0.05)"
     )
@@ -51,6 +56,13 @@ def add_parser(sub):
         "training samples, as smafl fit does) or 'fixed' (rising output, at rest with the first input: earlier versions)",
     )
     p.add_argument(
+        "--no-refine",
+        action="store_true",
+        help="keep the base at its variable-projection fit with the rule operator memory and fit only the 3 effects with "
+        "the best score-test evidence (faster; earlier versions). Default: base and every candidate refined jointly "
+        "with thresholds, tilts and a fitted operator memory",
+    )
+    p.add_argument(
         "--no-unexplained",
         action="store_true",
         help="skip the generic residual regression on the correlates (the 'unexplained' answer; never changes the selection)",
@@ -66,7 +78,7 @@ def run(args):
     from ..data._data import load_record
     from ..report._report import write_diagnosis
 
-    if args.max_candidates < 1:
+    if args.max_candidates is not None and args.max_candidates < 1:
         raise UserInputError(f"--max-candidates must be >= 1, got {args.max_candidates}")
     if not 0.0 <= args.min_gain < 1.0:
         raise UserInputError(f"--min-gain must be in [0, 1), got {args.min_gain}")
@@ -95,6 +107,7 @@ def run(args):
         n_folds=args.n_folds,
         seed=args.seed,
         screen=args.base_start == "screened",
+        refine=not args.no_refine,
         unexplained=not args.no_unexplained,
     )
     write_diagnosis(out, rec, diag)

@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
+from .._errors import UserInputError
 from ..models._cascade import Cascade
 from ..models._hysteresis import AbstractHysteresis
 from ..models._thermal import thermal_step
@@ -154,6 +155,11 @@ def _parts(model):
     if isinstance(model, AbstractHysteresis):
         return None, model
     if isinstance(model, Cascade):
+        if model.thermal.lag:
+            raise UserInputError(
+                "closed-loop simulation of a cascade whose drive heats from the next sample (thermal lag=1, chosen by "
+                "smafl diagnose for this record's sampling convention) is not supported; refit with lag 0 for control"
+            )
         return model.thermal, model.hysteresis
     raise TypeError(
         "closed-loop plant / compensator model must be a Cascade (thermal + hysteresis) or a hysteresis model "

@@ -153,6 +153,7 @@ class ExtendedModel(eqx.Module):
         q_amb = functools.reduce(jnp.add, ambient) if ambient else jnp.zeros(n)
         # q = theta k1/k2, so every init rule of JouleThermal maps over (steady: x0^2, given: u0^2, ambient: 0)
         q0 = th.initial_state(x[0]) * (th.k1 / th.k2)
+        x = th.drive_samples(x)  # the sampling convention of the base's thermal stage
 
         def step(q, xs):
             xk, qa = xs

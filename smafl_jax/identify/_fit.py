@@ -127,7 +127,7 @@ def _as_weights(weights, data):
 
 def _lag_unit(thermal, u, dt):
     """Joule lag of ``U^2`` with unit static gain (the column that multiplies ``k2/k1``)."""
-    return JouleThermal(k1=thermal.k1, k2=thermal.k1, init=thermal.init, u0=thermal.u0).simulate(u, dt)
+    return dataclasses.replace(thermal, k2=thermal.k1).simulate(u, dt)
 
 
 def _lag_features(m, u, dt):

@@ -37,6 +37,7 @@ from ._operators import MODEL_METHODS, resolve_method
 __all__ = ["JouleThermal", "PAPER_K1", "PAPER_K2", "thermal_step", "effective_voltage"]
 
 INITS = ("steady", "ambient", "given")
+LAGS = (0, 1)
 
 PAPER_K1 = 0.04988
 PAPER_K2 = 0.04172
@@ -73,8 +74,16 @@ class JouleThermal(eqx.Module):
     # evaluation form of the linear recurrence (smafl_jax.ops.affine): "scan", "assoc", "chunked",
     # "segmented" (agree with scan to rounding, ~1e-15 relative) or "auto" (choose_model_method)
     method: str = eqx.field(static=True, default="scan")
+    # Samples between a drive sample and the heating it causes: 0 = U(k) heats the interval that ends at sample k
+    # (zero-order hold on the current sample, as above); 1 = from the next interval on (the drive logged at the start
+    # of the interval it acts over, as many DAQs do).  A sampling convention of the rig, not physics: on sharp
+    # drives (PWM, steps) a one-sample mismatch leaves structure that a "delay" effect then explains.  Screened on
+    # held-out data by the diagnosis (`smafl_jax.diagnosis.refined_base`), not trained.
+    lag: int = eqx.field(static=True, default=0)
 
     def __check_init__(self):
+        if self.lag not in LAGS:
+            raise ValueError(f"JouleThermal lag must be one of {LAGS} samples, got {self.lag!r}")
         if self.method not in MODEL_METHODS:
             raise ValueError(f"JouleThermal method must be one of {MODEL_METHODS}, got {self.method!r}")
         if self.init not in INITS:
@@ -95,8 +104,16 @@ class JouleThermal(eqx.Module):
         g = self.gain
         theta0 = self.initial_state(u[0])
         # theta(k) = a theta(k-1) + b(k): the thermal_step recurrence as an affine scan (same products per sample)
-        b = (1.0 - a) * g * u * u
+        v = self.drive_samples(u)
+        b = (1.0 - a) * g * v * v
         return affine(a, b, theta0, method=resolve_method(self.method, u.shape[0], 1, "JouleThermal method"))
+
+    def drive_samples(self, u):
+        """The drive sample that heats each interval: ``u`` itself, or with ``lag=1`` the previous one (u(-1) = u(0),
+        the drive before the record held at its first value, consistent with every ``init`` rule)."""
+        if self.lag == 0:
+            return u
+        return jnp.concatenate([u[:1], u[:-1]])
 
     def initial_state(self, u_first):
         """``theta`` before the first sample, by the ``init`` rule."""
