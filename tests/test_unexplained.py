@@ -135,7 +135,7 @@ def test_diagnose_reports_unexplained_without_changing_the_selection(tmp_path):
     rec = sj.Record.from_arrays(
         np.arange(u.size) * dt, u, y, input_name="temperature_C", output_name="displacement_mm", extra={"humidity": humidity}
     )
-    kw = dict(effects=["strain_accumulation"], refit=False, verbose=False, n_null=3, seed=1)
+    kw = dict(effects=["strain_accumulation"], refit=False, verbose=False, n_null=3, seed=1, refine=False)
     diag = diagnose(rec, **kw)
     res, split = diag.report, diag.split
     diag0 = diagnose(rec, unexplained=False, **kw)

@@ -49,7 +49,6 @@ from ..identify._fit import as_fit_data, default_trainable
 from ..models._constraints import constrain, log_jacobian, positive, unconstrain
 from ..models._hysteresis import column_weight_scales, hysteresis_of, thermal_of
 from ..models._simulate import simulate
-from ..models._thermal import JouleThermal
 
 __all__ = [
     "Prior",
@@ -910,10 +909,18 @@ def derived_quantities(posterior, phys):
             "note": "k2 does not affect the cascade's displacement (it cancels in "
             "sqrt(theta k1/k2)); K2/K1 is identified only by the JouleThermal model fitted alone (U^2 -> output)",
         }
-    elif isinstance(posterior.model, JouleThermal) and k1n:
-        k2 = float(posterior.model.k2)
-        out["steady_state_gain"] = {"identified": False, "note": f"k2 held fixed at {k2:g}"}
+    elif k1n and (k2 := _model_leaf(posterior.model, k1n[: -len("k1")] + "k2")) is not None:
+        # k1 sampled, the same thermal stage's k2 held fixed (a Joule model fitted with k2 given): say at what value
+        out["steady_state_gain"] = {"identified": False, "note": f"k2 held fixed at {float(k2):g}"}
     return out
+
+
+def _model_leaf(model, name):
+    """The leaf of ``model`` that the sampler would name ``name`` (`_leaf_name`), or None."""
+    for path, leaf in jax.tree_util.tree_flatten_with_path(model)[0]:
+        if jax.tree_util.keystr(path).lstrip(".") == name:
+            return leaf
+    return None
 
 
 def summarize(posterior, run, burn=None, *, warn=True):

@@ -46,9 +46,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
-from .._errors import UserInputError
-from ..models._cascade import Cascade
-from ..models._hysteresis import AbstractHysteresis
 from ..models._thermal import thermal_step
 
 __all__ = [
@@ -151,16 +148,10 @@ class ClosedLoop(eqx.Module):
 
 
 def _parts(model):
-    """``(thermal or None, hysteresis)``: the per-sample plants are a hysteresis model and a `Cascade`."""
-    if isinstance(model, AbstractHysteresis):
-        return None, model
-    if isinstance(model, Cascade):
-        if model.thermal.lag:
-            raise UserInputError(
-                "closed-loop simulation of a cascade whose drive heats from the next sample (thermal lag=1, chosen by "
-                "smafl diagnose for this record's sampling convention) is not supported; refit with lag 0 for control"
-            )
-        return model.thermal, model.hysteresis
+    """``(thermal or None, hysteresis)``: the model's per-sample stages (``plant_parts``: a hysteresis model, a `Cascade`)."""
+    parts = getattr(model, "plant_parts", None)
+    if parts is not None:
+        return parts()
     raise TypeError(
         "closed-loop plant / compensator model must be a Cascade (thermal + hysteresis) or a hysteresis model "
         f"(EUPI, Preisach), got {type(model).__name__}"

@@ -67,9 +67,9 @@ from ..effects import EFFECTS, ExtendedModel, Log, effect_rank
 from ..identify._metrics import metrics
 from ..models._cascade import Cascade
 from ..models._eupi import EUPI
-from ..models._hysteresis import thermal_of
+from ..models._hysteresis import hysteresis_of, thermal_of
 from ..models._padding import padded_call
-from ..models._preisach import Preisach, cv_fit_preisach
+from ..models._preisach import cv_fit_preisach
 from ..models._thermal import JouleThermal
 from ._residuals import candidate_signals, effective_n, signal_correlations, whiteness_report
 
@@ -530,7 +530,7 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     from scipy.optimize import minimize
 
     ctx = _context(split)
-    start = base if isinstance(base, ExtendedModel) else ExtendedModel(base, ())
+    start = ExtendedModel.of(base)
     have = set(start.effect_names)
     new = [n for n in effects if n not in have]
     starts = []
@@ -891,10 +891,10 @@ def _fit_on(name, start, split, record, *, new, refine=False):
     if name == NONLOCAL_MEMORY["name"]:
         u = np.asarray(record.u, float)
         return cv_fit_preisach(split.train, float(u.min()), float(u.max()), progress=False)[0]
-    if isinstance(start, Preisach):
+    if hysteresis_of(start) is start:  # a bare hysteresis model: the nonlocal-memory replacement keeps its CV fit
         return start
     if new:
-        have = list(start.effect_names) if isinstance(start, ExtendedModel) else []
+        have = list(ExtendedModel.of(start).effect_names)
         n_par = len(EFFECTS[name].nonlinear(_context(split))) + len(have) + (1 if thermal_of(start) is not None else 0)
         m = fit_extended(start, have + [name], split, max_iter=NULL_MAX_ITER_PER_PARAMETER * max(n_par, 1))[0]
     else:
@@ -1073,7 +1073,7 @@ def _select_calibrated(record, split, base, base_te, candidates, fitted, *, min_
     ambiguous = [c["name"] for c in accepted if c["heldout_rmse"] <= (1.0 + cal["ambiguity"]) * first["heldout_rmse"]]
     cur_te = _held(chosen, split)
     for c in accepted[1:]:
-        if len(selected) >= max_effects or isinstance(chosen, Preisach):
+        if len(selected) >= max_effects or NONLOCAL_MEMORY["name"] in selected:  # a replaced base takes no effect
             break
         if c["name"] in ambiguous or c["name"] == NONLOCAL_MEMORY["name"]:
             continue
@@ -1104,7 +1104,7 @@ def _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose, sort
     selected, chosen = [first], fitted[first][0]
     cur_h, cur_ic = fitted[first][1], fitted[first][2]
     for c in accepted[1:]:
-        if len(selected) >= max_effects or isinstance(chosen, Preisach):
+        if len(selected) >= max_effects or NONLOCAL_MEMORY["name"] in selected:  # a replaced base takes no effect
             break
         if c["name"] == NONLOCAL_MEMORY["name"]:
             continue  # a base replacement, not an effect to add
@@ -1432,7 +1432,7 @@ def diagnose(
             "train_rmse": ext_tr["rmse"],
             "heldout_rmse": ext_te["rmse"],
             "information_criteria": (
-                fitted[selected[0]][2] if isinstance(chosen, Preisach) else information_criteria(chosen, split.train)
+                fitted[selected[0]][2] if NONLOCAL_MEMORY["name"] in selected else information_criteria(chosen, split.train)
             ),
             "parameters": {
                 n: (_preisach_params(fitted[n][3]) if n == NONLOCAL_MEMORY["name"] else _effect_params(chosen.get(n)))
@@ -1573,9 +1573,9 @@ def refit_whole_record(record, base, ext, result, verbose=True):
     t0 = time.time()
     PROGRESS.info("  diagnose: refitting the chosen structure on the whole record")
     full = whole_record_split(record)
-    base_all = fit_extended(base if isinstance(base, ExtendedModel) else ExtendedModel(base, ()), [], full)[0].base
+    base_all = fit_extended(ExtendedModel.of(base), [], full)[0].base
     preisach_cv = None
-    if isinstance(ext, Preisach):
+    if NONLOCAL_MEMORY["name"] in result["selected"]:
         # the grid and penalty are chosen again by the same inner CV, now over every branch: each inner fold then
         # predicts a branch between two trained neighbours, the situation of a new branch from the same rig
         u = np.asarray(record.u, float)
@@ -1587,7 +1587,7 @@ def refit_whole_record(record, base, ext, result, verbose=True):
         ext_all = base_all
     else:
         ext_all = fit_extended(ext, list(ext.effect_names), full)[0]
-    wrap = lambda m: ExtendedModel(m, ()) if isinstance(m, (EUPI, Cascade)) else m
+    wrap = lambda m: ExtendedModel(m, ()) if m is base_all else m  # the base is scored as on the split; the rest as is
     info = {
         "fitted_on": full.rule,
         "segments": full.train_labels,
@@ -1595,11 +1595,7 @@ def refit_whole_record(record, base, ext, result, verbose=True):
         "base_rmse_all": score(wrap(base_all), full.train)[0]["rmse"],
         "extended_rmse_all": score(wrap(ext_all), full.train)[0]["rmse"],
         "extended_parameters": (
-            _effect_params_all(ext_all, result["selected"])
-            if isinstance(ext_all, ExtendedModel)
-            else {NONLOCAL_MEMORY["name"]: preisach_cv}
-            if preisach_cv
-            else {}
+            {NONLOCAL_MEMORY["name"]: preisach_cv} if preisach_cv else _effect_params_all(ext_all, result["selected"])
         ),
         "seconds": time.time() - t0,
     }

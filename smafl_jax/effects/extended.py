@@ -50,9 +50,7 @@ import jax.numpy as jnp
 
 from .. import _config  # noqa: F401
 from .._io import register_model
-from ..models._cascade import Cascade
-from ..models._hysteresis import AbstractHysteresis, hysteresis_of
-from ..models._thermal import _safe_sqrt
+from ..models._hysteresis import AbstractHysteresis, hysteresis_of, thermal_of
 from .protocol import EFFECTS, AbstractEffect, effect_rank
 
 __all__ = ["ExtendedModel", "LoadBound"]
@@ -62,11 +60,19 @@ __all__ = ["ExtendedModel", "LoadBound"]
 class ExtendedModel(eqx.Module):
     """Base model (`Cascade` or a hysteresis model) composed with catalogue effects; fitted jointly."""
 
+    #: Not a base for another `ExtendedModel`: effects join this one's tuple instead (`AbstractHysteresis.extendable`).
+    extendable = False
+
     base: eqx.Module
     effects: tuple = ()
 
+    @classmethod
+    def of(cls, model) -> ExtendedModel:
+        """``model`` as an extended model: itself when it is one already (not `extendable`), else with no effects."""
+        return cls(model, ()) if getattr(model, "extendable", True) else model
+
     def __check_init__(self):
-        if isinstance(self.base, ExtendedModel) or hysteresis_of(self.base) is None:
+        if not getattr(self.base, "extendable", False) or hysteresis_of(self.base) is None:
             raise ValueError(
                 f"ExtendedModel base must be a Cascade or a hysteresis model (EUPI, Preisach), got {type(self.base).__name__}"
             )
@@ -77,7 +83,7 @@ class ExtendedModel(eqx.Module):
         if len(set(names)) != len(names):
             raise ValueError(f"each effect may appear once, got {names}")
         for e in self.effects:
-            if "thermal" in e.needs and not isinstance(self.base, Cascade):
+            if "thermal" in e.needs and thermal_of(self.base) is None:
                 raise ValueError(f"effect {e.name!r} acts on the thermal model and needs a Cascade base")
             if e.scales_thresholds and not self.hysteresis.scalable_thresholds:
                 raise ValueError(
@@ -128,7 +134,7 @@ class ExtendedModel(eqx.Module):
         spec = jax.tree_util.tree_map(eqx.is_inexact_array, self)
         fixed = self.hysteresis.fixed_fields()
         spec = eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fixed], spec, [False] * len(fixed))
-        if isinstance(self.base, Cascade):
+        if thermal_of(self.base) is not None:  # k2 cancels in the hysteresis input (see `smafl_jax.identify.default_trainable`)
             spec = eqx.tree_at(lambda s: s.base.thermal.k2, spec, False)
         for i, e in enumerate(self.effects):
             held = e.held_fields(load=load)
@@ -180,9 +186,8 @@ class ExtendedModel(eqx.Module):
         x = u
         for e in self.stage_effects("input"):
             x = e.transform_input(x, dt)
-        if isinstance(self.base, Cascade):
-            q = self._thermal(x, dt)
-            return q if self.base.sees == "heat" else _safe_sqrt(q)
+        if thermal_of(self.base) is not None:
+            return self.base.drive_of_heat(self._thermal(x, dt))
         effs = self.stage_effects("thermal")
         if effs:
             t = jnp.arange(x.shape[0], dtype=jnp.float64) * dt
@@ -194,7 +199,7 @@ class ExtendedModel(eqx.Module):
         """Internal signals: ``x`` (hysteresis input), ``q`` (thermal state, V^2, cascade only), ``y``."""
         x = self.hysteresis_input(u, dt)
         out = {"x": x, "y": self.simulate(u, dt)}
-        if isinstance(self.base, Cascade):
+        if thermal_of(self.base) is not None:
             out["q"] = x * x
         return out
 

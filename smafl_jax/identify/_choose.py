@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import _config  # noqa: F401
 from .._errors import UserInputError
-from ..models._cascade import Cascade
+from ..models._hysteresis import thermal_of
 from ._fit import as_fit_data, fit
 
 __all__ = ["auto_structure", "screen_start", "refine_thermal_start", "fitted_memory_start", "COLD_FRACTION", "START_FRACTIONS"]
@@ -77,20 +77,6 @@ def _with_orientation(model, sign):
     return model.with_hysteresis(dataclasses.replace(model.hysteresis, orientation=int(sign)))
 
 
-def _with_sees(model, sees, u_hi):
-    """Cascade copy whose hysteresis acts on ``sees`` (same operator grid, range rescaled)."""
-    if model.sees == sees:
-        return model
-    fresh = model.hysteresis.with_range(0.0, u_hi if sees == "voltage" else u_hi * u_hi)
-    return dataclasses.replace(model, hysteresis=fresh, sees=sees)
-
-
-def _with_thermal_start(model, init, u0=None):
-    th = model.thermal
-    new = dataclasses.replace(th, init=init, u0=None if u0 is None else jnp.asarray(float(u0)))
-    return dataclasses.replace(model, thermal=new)
-
-
 def _weighted_sse(model, data, weights):
     total = 0.0
     for (u, y, d), w in zip(data, weights):
@@ -126,7 +112,7 @@ def refine_thermal_start(model, data, weights, u_hi, *, max_evals=80):
         frac = float(x[1])
         if not 0.0 < frac <= 1.0:
             return np.inf
-        m = _with_thermal_start(_set_k1(model, float(np.exp(x[0]))), "given", frac * u_hi)
+        m = _set_k1(model, float(np.exp(x[0]))).with_thermal_start("given", frac * u_hi)
         got = _profiled(m, data, weights, np.array([float(np.exp(x[0]))]))
         if got is None:
             return np.inf
@@ -201,7 +187,9 @@ def screen_start(
         raise UserInputError(f"hysteresis input must be auto, voltage or heat, got {sees!r}")
     data = as_fit_data(data)
     signs = {"auto": (1, -1), "rises": (1,), "falls": (-1,)}[orientation]
-    cascade = isinstance(start, Cascade)  # the screening changes what a Cascade sees and its thermal start
+    # a thermal stage in front of the hysteresis (a cascade): the screening also picks what the hysteresis sees
+    # (`Cascade.with_sees`) and the thermal start (`Cascade.with_thermal_start`)
+    cascade = thermal_of(start) is not None
     u_hi = max(float(np.max(np.asarray(d[0]))) for d in data) if cascade else None
     free_start = cascade and thermal_start in ("auto", "fitted") and len(data) == 1
     if cascade:
@@ -216,11 +204,11 @@ def screen_start(
     def candidate(sign, inp, th):
         m = _with_orientation(start, sign)
         if inp is not None:
-            m = _with_sees(m, inp, u_hi)
+            m = m.with_sees(inp, u_hi)
         if th == "steady":
-            m = _with_thermal_start(m, "steady")
+            m = m.with_thermal_start("steady")
         elif th is not None:
-            m = _with_thermal_start(m, "given", _start_fraction(th) * u_hi)
+            m = m.with_thermal_start("given", _start_fraction(th) * u_hi)
         t0 = time.perf_counter()
         row = {"orientation": sign, "sees": inp, "thermal_start": th}
         got = _profiled(m, data, weights, k1_grid)
@@ -313,7 +301,7 @@ def _finish_start(best, data, weights, free_start, u_hi, memory, table, say, t_a
         # free initial effective voltage from the best start, refined jointly with k1 (gains profiled)
         u_first = float(np.asarray(data[0][0])[0])
         u0 = max(u_first, COLD_FRACTION * u_hi) if th == "steady" else _start_fraction(th) * u_hi
-        model = _with_thermal_start(model, "given", u0)
+        model = model.with_thermal_start("given", u0)
         r_loss, r_model, r_info = refine_thermal_start(model, data, weights, u_hi)
         if r_loss <= loss:
             # keep the stage-1 k1 profile (grid, edge flag) and add the refined point

@@ -43,9 +43,7 @@ from .. import _config  # noqa: F401
 from .._errors import UserInputError
 from .._progress import count_step
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
-from ..models._hysteresis import hysteresis_of
-from ..models._joule_lag import JouleLag
-from ..models._thermal import JouleThermal
+from ..models._hysteresis import hysteresis_of, thermal_of
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
 
@@ -125,22 +123,7 @@ def _as_weights(weights, data):
 # -- model structure -------------------------------------------------------------
 
 
-def _lag_unit(thermal, u, dt):
-    """Joule lag of ``U^2`` with unit static gain (the column that multiplies ``k2/k1``)."""
-    return dataclasses.replace(thermal, k2=thermal.k1).simulate(u, dt)
-
-
-def _lag_features(m, u, dt):
-    lag = _lag_unit(m.thermal, u, dt)
-    return jnp.stack([lag, jnp.ones_like(lag)], axis=1)
-
-
-def _lag_set_weights(m, theta):
-    g = jnp.maximum(jnp.asarray(theta[0]), POSITIVE_FLOOR)
-    return eqx.tree_at(lambda x: (x.thermal.k2, x.offset), m, (g * m.thermal.k1, jnp.asarray(theta[1])))
-
-
-def _hysteresis_features(m, u, dt):
+def _model_features(m, u, dt):
     return m.features(u, dt)
 
 
@@ -148,23 +131,30 @@ def _hysteresis_set_weights(m, theta):
     return m.with_hysteresis(m.hysteresis.with_linear_weights(theta))
 
 
+def _own_set_weights(m, theta):
+    return m.with_linear_weights(theta)
+
+
 def _linear_part(model):
     """``(features(model, u, dt), nonneg mask, with_weights(model, theta))`` or None.
 
-    The model's output is ``features @ theta`` for fixed nonlinear parameters: a `JouleLag`, or any
-    model with a hysteresis part (`smafl_jax.models._hysteresis`) whose output is linear in its weights.
-    Module-level functions, so jitted callers compile once per shape.
+    The model's output is ``features @ theta`` for fixed nonlinear parameters (its class says so:
+    ``linear_in_weights``).  The weights are those of its hysteresis part (`smafl_jax.models._hysteresis`:
+    a hysteresis model, a cascade, an extended model) or, for a model without one (`JouleLag`: static gain
+    and offset), its own through the same methods.  Module-level functions, so jitted callers compile once
+    per shape.
     """
-    if isinstance(model, JouleLag):
-        return _lag_features, np.array([True, False]), _lag_set_weights
-    h = hysteresis_of(model)
-    if h is None or not model.linear_in_weights:
+    if not getattr(model, "linear_in_weights", False):
         return None
-    return _hysteresis_features, np.asarray(h.nonnegative_columns()), _hysteresis_set_weights
+    h = hysteresis_of(model)
+    if h is None:
+        return _model_features, np.asarray(model.nonnegative_columns()), _own_set_weights
+    return _model_features, np.asarray(h.nonnegative_columns()), _hysteresis_set_weights
 
 
 def _has_k1(model):
-    return isinstance(getattr(model, "thermal", None), JouleThermal)
+    """A thermal stage whose rate ``model.thermal.k1`` the profile searches (cascade, Joule lag, extended cascade)."""
+    return getattr(model, "thermal", None) is not None
 
 
 def _set_k1(model, k1):
@@ -187,7 +177,7 @@ def default_trainable(model, *, thresholds=False, tilts=False):
         return model.trainable_spec(load=False)
     spec = jax.tree_util.tree_map(eqx.is_inexact_array, model)
     h = hysteresis_of(model)
-    if _has_k1(model) and h is not None:
+    if thermal_of(model) is not None:  # a thermal stage in front of a hysteresis: k2 cancels (see above)
         spec = eqx.tree_at(lambda s: s.thermal.k2, spec, False)
     if h is not None:
         train = [g for g, on in (("thresholds", thresholds), ("tilts", tilts)) if on]

@@ -18,12 +18,14 @@ from __future__ import annotations
 import dataclasses
 
 import equinox as eqx
+import jax.numpy as jnp
 
 from .. import _config  # noqa: F401
+from .._errors import UserInputError
 from .._io import register_model
 from ._eupi import EUPI
 from ._hysteresis import AbstractHysteresis
-from ._thermal import JouleThermal
+from ._thermal import JouleThermal, _safe_sqrt
 
 __all__ = ["SEES", "Cascade"]
 
@@ -36,6 +38,8 @@ class Cascade(eqx.Module):
 
     #: The output is ``features(u, dt) @ hysteresis.linear_weights()`` (a class constant, not a field).
     linear_in_weights = True
+    #: May be the base of an `ExtendedModel` (see `AbstractHysteresis.extendable`).
+    extendable = True
 
     thermal: JouleThermal
     hysteresis: AbstractHysteresis
@@ -54,6 +58,11 @@ class Cascade(eqx.Module):
         u_eff = self.thermal.effective_voltage(theta)
         return u_eff if self.sees == "voltage" else u_eff * u_eff
 
+    def drive_of_heat(self, q):
+        """Signal the hysteresis sees for the thermal state in V^2 units ``q = theta k1 / k2`` (`ExtendedModel`'s state):
+        ``sqrt(q)`` (``sees="voltage"``) or ``q`` itself (``sees="heat"``)."""
+        return q if self.sees == "heat" else _safe_sqrt(q)
+
     def hysteresis_input(self, u, dt):
         return self.drive_of(self.thermal.simulate(u, dt))
 
@@ -68,6 +77,29 @@ class Cascade(eqx.Module):
     def with_hysteresis(self, h: AbstractHysteresis) -> Cascade:
         """Copy with the hysteresis part replaced."""
         return eqx.tree_at(lambda m: m.hysteresis, self, h)
+
+    def with_sees(self, sees: str, u_max: float) -> Cascade:
+        """Copy whose hysteresis acts on ``sees`` for drives up to ``u_max`` V (same operator grid, range rescaled);
+        the start screening (`smafl_jax.identify.screen_start`) tries both inputs."""
+        if sees == self.sees:
+            return self
+        fresh = self.hysteresis.with_range(0.0, u_max if sees == "voltage" else u_max * u_max)
+        return dataclasses.replace(self, hysteresis=fresh, sees=sees)
+
+    def with_thermal_start(self, init: str, u0: float | None = None) -> Cascade:
+        """Copy whose thermal stage starts by rule ``init`` (``"given"``: the state a constant ``u0`` V would hold)."""
+        u0 = None if u0 is None else jnp.asarray(float(u0))
+        return dataclasses.replace(self, thermal=dataclasses.replace(self.thermal, init=init, u0=u0))
+
+    def plant_parts(self) -> tuple[JouleThermal, AbstractHysteresis]:
+        """``(thermal, hysteresis)``: the per-sample stages `smafl_jax.control.plant_step` runs (ZOH thermal step, then
+        the hysteresis step on `drive_of`)."""
+        if self.thermal.lag:
+            raise UserInputError(
+                "closed-loop simulation of a cascade whose drive heats from the next sample (thermal lag=1, chosen by "
+                "smafl diagnose for this record's sampling convention) is not supported; refit with lag 0 for control"
+            )
+        return self.thermal, self.hysteresis
 
     def states(self, u, dt):
         """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``drive`` (hysteresis input), ``y``."""

@@ -85,6 +85,7 @@ class EUPI(AbstractHysteresis):
     INITS = _INITS
     trainable_groups = MappingProxyType({"thresholds": ("r_sym", "r_asym"), "tilts": ("alpha",)})
     scalable_thresholds = True
+    evaluation_methods = MODEL_METHODS  # the ``method`` field: scan or an exact parallel-in-time form
 
     gain: jnp.ndarray = positive()
     v: jnp.ndarray = positive()

@@ -26,7 +26,9 @@ with the same state rule as the evaluation.  Its contract:
 
 Composite models expose their hysteresis the same way: ``model.hysteresis`` (a hysteresis model is
 its own), ``model.with_hysteresis(h)`` and ``model.hysteresis_input(u, dt)``; `hysteresis_of`
-returns ``None`` for models without one (the Joule lag).
+returns ``None`` for models without one (the Joule lag).  The consumers ask the model, never its
+class (issue 12): ``plant_parts()`` (the per-sample stages of the closed loop), ``extendable`` (it
+may be the base of an `ExtendedModel`), ``evaluation_methods`` (the forms `with_method` accepts).
 
 Registry: the concrete classes are named in `smafl_jax._choices.HYSTERESIS` (a JAX-free module, so
 ``smafl fit --help`` lists them without importing JAX); `hysteresis_models` resolves them.
@@ -68,6 +70,10 @@ class AbstractHysteresis(eqx.Module):
     scalable_thresholds = False
     #: The output is ``features(u, dt) @ hysteresis.linear_weights()`` (true of every hysteresis model and cascade).
     linear_in_weights = True
+    #: May be the base of an `ExtendedModel` (catalogue effects wrap it; an extended model itself is not).
+    extendable = True
+    #: Evaluation forms `with_method` switches between (`model_with_method`); () for a model with one form.
+    evaluation_methods = ()
 
     # -- construction --------------------------------------------------------
     @classmethod
@@ -162,6 +168,10 @@ class AbstractHysteresis(eqx.Module):
     def steady_drive(self, u):
         """Hysteresis input once a constant input ``u`` has been held (the input itself; a cascade maps it)."""
         return u
+
+    def plant_parts(self) -> tuple[None, AbstractHysteresis]:
+        """``(thermal stage or None, hysteresis)``: the per-sample stages `smafl_jax.control.plant_step` runs (one here)."""
+        return None, self
 
 
 def hysteresis_of(model) -> AbstractHysteresis | None:

@@ -10,12 +10,15 @@ from the cascade's ``k2``, which the displacement does not determine.
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from .. import _config  # noqa: F401
 from .._io import register_model
-from ._constraints import parameter
+from ._constraints import POSITIVE_FLOOR, parameter
 from ._thermal import JouleThermal
 
 __all__ = ["JouleLag"]
@@ -23,7 +26,15 @@ __all__ = ["JouleLag"]
 
 @register_model
 class JouleLag(eqx.Module):
-    """First-order lag from ``U^2`` to the output, with an offset (paper's eq. 7)."""
+    """First-order lag from ``U^2`` to the output, with an offset (paper's eq. 7).
+
+    For a fixed ``k1`` the output is linear in the static gain ``k2 / k1`` (>= 0) and the offset: the same
+    linear-weights protocol as a hysteresis model (`features`, `linear_weights`, `with_linear_weights`,
+    `nonnegative_columns`), so `smafl_jax.identify.fit` profiles both out by bounded least squares.
+    """
+
+    #: The output is ``features(u, dt) @ linear_weights()`` (a class constant, not a field).
+    linear_in_weights = True
 
     thermal: JouleThermal = eqx.field(default_factory=JouleThermal)
     offset: jnp.ndarray = parameter(default_factory=lambda: jnp.asarray(0.0))
@@ -31,3 +42,21 @@ class JouleLag(eqx.Module):
     def simulate(self, u, dt):
         """Output for voltage record ``u`` sampled every ``dt`` seconds."""
         return self.thermal.simulate(u, dt) + self.offset
+
+    def features(self, u, dt):
+        """Design matrix ``(T, 2)``: the lag of ``U^2`` with unit static gain (``k2 = k1``) and a column of ones."""
+        lag = dataclasses.replace(self.thermal, k2=self.thermal.k1).simulate(u, dt)
+        return jnp.stack([lag, jnp.ones_like(lag)], axis=1)
+
+    def linear_weights(self):
+        """``[k2 / k1, offset]`` in the column order of `features`."""
+        return jnp.stack([self.thermal.k2 / self.thermal.k1, jnp.asarray(self.offset, dtype=jnp.float64)])
+
+    def with_linear_weights(self, theta) -> JouleLag:
+        """Copy with static gain ``theta[0]`` (floored at `POSITIVE_FLOOR`: ``k2`` stays positive) and offset ``theta[1]``."""
+        g = jnp.maximum(jnp.asarray(theta[0]), POSITIVE_FLOOR)
+        return eqx.tree_at(lambda m: (m.thermal.k2, m.offset), self, (g * self.thermal.k1, jnp.asarray(theta[1])))
+
+    def nonnegative_columns(self) -> np.ndarray:
+        """The static gain is >= 0, the offset free."""
+        return np.array([True, False])

@@ -76,8 +76,13 @@ def resolve_method(method: str, T: int, n: int, where: str = "method") -> str:
     return method
 
 
+def _has_methods(x) -> bool:
+    """A part whose class declares ``evaluation_methods`` (EUPI, JouleThermal): its ``method`` field picks the form."""
+    return bool(getattr(type(x), "evaluation_methods", ()))
+
+
 def model_with_method(model, method: str):
-    """Copy of ``model`` with every EUPI and JouleThermal inside it evaluated by ``method``.
+    """Copy of ``model`` with every part that has evaluation methods (EUPI, JouleThermal) evaluated by ``method``.
 
     Works for a `Cascade`, an `EUPI`, a `JouleThermal` or any model containing them (e.g. an
     `ExtendedModel`; its effects' own recurrences keep their sequential form).  ValueError when
@@ -85,21 +90,17 @@ def model_with_method(model, method: str):
     """
     import dataclasses
 
-    from ._eupi import EUPI
-    from ._thermal import JouleThermal
-
     if method not in MODEL_METHODS:
         raise ValueError(f"method must be one of {MODEL_METHODS}, got {method!r}")
-    kinds = (EUPI, JouleThermal)
     found = []
 
     def switch(x):
-        if isinstance(x, kinds):
+        if _has_methods(x):
             found.append(type(x).__name__)
             return dataclasses.replace(x, method=method)
         return x
 
-    out = jax.tree.map(switch, model, is_leaf=lambda x: isinstance(x, kinds))
+    out = jax.tree.map(switch, model, is_leaf=_has_methods)
     if not found:
         raise ValueError(f"{type(model).__name__} has no EUPI or JouleThermal part, so no evaluation method to set")
     return out

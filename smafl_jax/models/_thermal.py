@@ -65,6 +65,9 @@ def effective_voltage(theta, k1, k2):
 class JouleThermal(eqx.Module):
     """First-order Joule thermal model driven by ``U^2``."""
 
+    #: Evaluation forms of the ``method`` field (`model_with_method` switches every part that declares some).
+    evaluation_methods = MODEL_METHODS
+
     k1: jnp.ndarray = positive(default_factory=lambda: jnp.asarray(PAPER_K1))
     k2: jnp.ndarray = positive(default_factory=lambda: jnp.asarray(PAPER_K2))
     init: str = eqx.field(static=True, default="steady")
