@@ -40,6 +40,7 @@ import numpy as np
 import optimistix as optx
 
 from .. import _config  # noqa: F401
+from .._compile_cache import release_if_needed
 from .._errors import UserInputError
 from .._progress import count_step
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
@@ -491,6 +492,7 @@ def fit(
     memory stays continuous).  ``trainable`` defaults to
     `default_trainable(model)`.
     """
+    release_if_needed()  # long sessions compile many programs: stay under the memory-map limit (`_compile_cache`)
     if init not in _INITS:
         raise UserInputError(f"init must be one of {_INITS}, got {init!r}")
     if solver is not None and solver not in SOLVERS:
