@@ -47,7 +47,7 @@ from .. import _config  # noqa: F401
 from .._errors import UserInputError
 from ..identify._fit import as_fit_data, default_trainable
 from ..models._constraints import constrain, log_jacobian, positive, unconstrain
-from ..models._hysteresis import column_weight_scales, hysteresis_of, thermal_of
+from ..models._hysteresis import column_weight_scales, hysteresis_of, linear_field_columns, thermal_of
 from ..models._simulate import simulate
 
 __all__ = [
@@ -56,6 +56,7 @@ __all__ = [
     "SampleRun",
     "ChainTooShortWarning",
     "default_priors",
+    "hysteresis_priors",
     "check_model_supported",
     "linear_modes",
     "resolve_walkers",
@@ -189,17 +190,19 @@ def _data_scale(data):
     return yr, float(np.max(np.abs(us))) or 1.0
 
 
-def default_priors(names, data):
+def default_priors(names, data, model=None):
     """Weakly informative priors for the parameter leaves ``names``, scaled by the data.
 
-    k1: lognormal around the paper's 0.05 1/s, sd 2 in log (time constants ~0.4 s..1000 s
-    at 95 %); k2: lognormal around the value that maps ``max U^2`` to the output range, sd 3;
-    hysteresis weights that are >= 0 (EUPI gain, v, w; Preisach relay weights w): half-normal with
-    scale 2x the output range; polynomial, offset and other free weights: normal(0, 10x range);
-    thresholds and tilts (if trained): lognormal around their grid scale; fitted operator memory
-    logits: normal(0, 4); noise scale: half-normal
-    with the output's range as scale.  Names are matched on their last two parts, so a thermal
-    ``k1`` nested in an extended model (``base.thermal.k1``) gets the k1 prior.
+    The hysteresis part of ``model`` states its own (`hysteresis_priors`): its linear weights that are >= 0
+    (`nonnegative_columns`: EUPI gain, v, w; Preisach relay weights) half-normal with scale 2x the output range,
+    the signed ones (polynomial, offset) normal(0, 10x range), each times the field's `weight_scales` (Preisach
+    relays: 1 / sqrt(n)); its other trainable fields by its `nonlinear_priors` (EUPI thresholds and tilts:
+    lognormal around their grid scale; fitted operator memory logits: normal(0, 4)).  The parts every model
+    shares are matched by name: k1 lognormal around the paper's 0.05 1/s, sd 2 in log (time constants
+    ~0.4 s..1000 s at 95 %); k2 lognormal around the value that maps ``max U^2`` to the output range, sd 3 (on
+    their last two name parts, so a thermal ``k1`` nested in an extended model, ``base.thermal.k1``, gets the k1
+    prior); the Joule lag's ``offset`` as a signed weight; the noise scale half-normal with the output's range as
+    scale.  Anything else (catalogue effect parameters) is flat.
     """
     yr, umax = _data_scale(data)
     table = {
@@ -208,29 +211,59 @@ def default_priors(names, data):
         # in log space: yr / umax^2 can over- or underflow for extreme units
         "thermal.k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
         "k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
+        "offset": Prior("normal", 0.0, 10.0 * yr),  # `JouleLag.offset` (a hysteresis' own offset is claimed above)
         "noise.sigma": Prior("halfnormal", scale=yr),
     }
+    own = hysteresis_priors(model, yr) if model is not None else {}
     out = {}
     for name in names:
-        leaf = name.split(".")[-1]
         tail = ".".join(name.split(".")[-2:])
-        if name in table:
+        if name in own:
+            out[name] = own[name]
+        elif name in table:
             out[name] = table[name]
-        elif tail in table:
+        elif tail in table and tail != "offset":
             out[name] = table[tail]
-        elif leaf in ("gain", "v", "w"):
-            out[name] = Prior("halfnormal", scale=2.0 * yr)
-        elif leaf in ("poly", "offset"):
-            out[name] = Prior("normal", 0.0, 10.0 * yr)
-        elif leaf in ("r_sym", "r_asym"):
-            out[name] = Prior("lognormal", math.log(0.25), 1.0)
-        elif leaf == "alpha":
-            out[name] = Prior("lognormal", 0.0, 1.0)
-        elif leaf == "memory":  # logit of a fitted operator start (EUPI init="fitted"): keeps walkers off +-inf
-            out[name] = Prior("normal", 0.0, 4.0)
         else:
             out[name] = Prior("flat")
     return out
+
+
+def hysteresis_priors(model, y_range: float) -> dict[str, Prior]:
+    """``{sampler leaf name: Prior}`` for the fields of ``model``'s hysteresis part, from its protocol (see `default_priors`).
+
+    ``y_range``: the output range the weights' scales refer to.  Empty for a model without a hysteresis part.
+    """
+    h = hysteresis_of(model)
+    if h is None:
+        return {}
+    nonneg = np.asarray(h.nonnegative_columns(), dtype=bool)
+    columns = linear_field_columns(h)
+    scales = h.weight_scales()
+    by_field = {}
+    for field in h.linear_fields():
+        scale = float(scales.get(field, 1.0))
+        if np.all(nonneg[columns[field]]):
+            by_field[field] = Prior("halfnormal", scale=2.0 * y_range * scale)
+        else:
+            by_field[field] = Prior("normal", 0.0, 10.0 * y_range * scale)
+    for field, (dist, loc, scale) in h.nonlinear_priors().items():
+        by_field.setdefault(field, Prior(dist, loc, scale))
+    where = _hysteresis_leaf_names(model, by_field)
+    return {where[f]: p for f, p in by_field.items() if f in where}
+
+
+def _hysteresis_leaf_names(model, fields) -> dict[str, str]:
+    """``{field of model's hysteresis part: its leaf name}`` (``"hysteresis.w"``, ``"base.hysteresis.w"``, ``"w"``...),
+    the names `Posterior` gives the sampled leaves; fields that are None (an EUPI without fitted memory) are left out."""
+    h = hysteresis_of(model)
+    marks = {f: object() for f in fields if getattr(h, f, None) is not None}
+    if not marks:
+        return {}
+    # tag the fields, then read their paths in the model's tree
+    tagged = eqx.tree_at(lambda m: [getattr(m.hysteresis, f) for f in marks], model, list(marks.values()))
+    where = {id(leaf): jax.tree_util.keystr(path).lstrip(".") for path, leaf in jax.tree_util.tree_flatten_with_path(tagged)[0]}
+    return {f: where[id(mark)] for f, mark in marks.items()}
 
 
 # -- posterior ----------------------------------------------------------------
@@ -256,19 +289,6 @@ def _element_names(name, shape):
     if shape == ():
         return [name]
     return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
-
-
-def _weight_prior_scales(model, names):
-    """``{leaf name: relative scale}`` for the hysteresis weight leaves whose scale is not 1 (see `weight_scales`)."""
-    h = hysteresis_of(model)
-    scales = {f: s for f, s in (h.weight_scales() if h is not None else {}).items() if s != 1.0}
-    if not scales:
-        return {}
-    marks = {f: object() for f in scales}  # tag the fields, then read their paths (= the sampler's leaf names)
-    tagged = eqx.tree_at(lambda m: [getattr(m.hysteresis, f) for f in marks], model, list(marks.values()))
-    where = {id(leaf): jax.tree_util.keystr(path).lstrip(".") for path, leaf in jax.tree_util.tree_flatten_with_path(tagged)[0]}
-    out = {where[id(mark)]: scales[f] for f, mark in marks.items()}
-    return {n: s for n, s in out.items() if n in names}
 
 
 def _ridge_lstsq(A, y, ridge):
@@ -381,10 +401,7 @@ class Posterior:
         unknown = sorted(set(user) - set(self.names_leaf))
         if unknown:
             raise UserInputError(f"priors given for unknown parameters {unknown}; sampled parameters are {self.names_leaf}")
-        pri = default_priors(self.names_leaf, self.data)
-        for name, scale in _weight_prior_scales(model, self.names_leaf).items():  # e.g. Preisach relays: 1/sqrt(n)
-            if pri[name].dist in ("halfnormal", "normal"):
-                pri[name] = dataclasses.replace(pri[name], scale=pri[name].scale * scale)
+        pri = default_priors(self.names_leaf, self.data, model)
         pri.update(user)
         self.priors = pri
         self._d = _Density(

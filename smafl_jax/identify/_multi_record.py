@@ -139,6 +139,7 @@ def _combined(records):
 
 def _joint_fit(records, *, model, solver, max_steps, thresholds, tilts, grid, orientation, thermal_start, sees="auto", progress):
     """The model choice of `fit_record` on several records (all samples train); returns ``(FitResult, info)``."""
+    from ..models._hysteresis import hysteresis_of
     from ..report._report_fit import structure_start
     from ._choose import screen_start
     from ._fit import default_trainable, fit
@@ -147,7 +148,7 @@ def _joint_fit(records, *, model, solver, max_steps, thresholds, tilts, grid, or
     structure, thresholds, tilts, start, notes = structure_start(model, combo, thresholds, tilts, grid)
     weights = [np.ones(len(r)) for r in records]
     screening, init, screen_info = None, "auto", {}
-    if structure in ("eupi", "cascade"):
+    if hysteresis_of(start) is not None:  # as `fit_record`: every model with a hysteresis part is screened
         start, screening, screen_info = screen_start(
             start, list(records), weights, orientation=orientation, thermal_start=thermal_start, sees=sees, progress=progress
         )
@@ -249,6 +250,7 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
     the fit.json content; ``details`` holds the per-record simulations for the
     figures (``yhat``: joint model, ``yhat_loro``: fold model with the record held out).
     """
+    from ..models._hysteresis import thermal_of
     from ..report._provenance import fit_header, versions
     from ..report._report_fit import K2_NOTE
     from ._fit import SOLVERS
@@ -349,7 +351,7 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
     )
 
     notes = list(info["notes"])
-    if info["structure"] == "cascade":
+    if thermal_of(res.model) is not None:  # a thermal lag in front of a hysteresis: k2 cancels (a cascade)
         notes.append(K2_NOTE)
         if len(records) > 1:
             notes.append(

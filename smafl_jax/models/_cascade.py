@@ -101,6 +101,10 @@ class Cascade(eqx.Module):
             )
         return self.thermal, self.hysteresis
 
+    def describe(self) -> list[str]:
+        """The thermal stage's lines, then the hysteresis' (`AbstractHysteresis.describe`), for a fit report."""
+        return [*self.thermal.describe(), *self.hysteresis.describe()]
+
     def states(self, u, dt):
         """Dict of internal signals: ``theta`` (thermal state), ``u_eff``, ``drive`` (hysteresis input), ``y``."""
         theta = self.thermal.simulate(u, dt)

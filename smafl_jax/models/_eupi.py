@@ -38,6 +38,7 @@ geometrically spaced in [0.4, 2.5] (both sides of the symmetric tilt 1).
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Collection
 from types import MappingProxyType
 
@@ -49,7 +50,7 @@ import numpy as np
 from .. import _config  # noqa: F401
 from .._io import register_model
 from ._constraints import parameter, positive
-from ._hysteresis import AbstractHysteresis
+from ._hysteresis import AbstractHysteresis, _orientation_line
 from ._operators import MODEL_METHODS, consistent_initial_state, play, play_step, play_weighted
 
 __all__ = ["EUPI", "threshold_grid", "tilt_grid"]
@@ -210,6 +211,33 @@ class EUPI(AbstractHysteresis):
         """``u_ref``, ``u_span`` always; thresholds and tilts unless their group is in ``train``."""
         grids = [f for group, names in self.trainable_groups.items() if group not in train for f in names]
         return ("u_ref", "u_span", *grids)
+
+    def nonlinear_priors(self):
+        """Thresholds (normalised input) lognormal around the grid's scale 0.25, tilts around 1 (symmetric), and the
+        fitted memory's logits normal(0, 4), which keeps walkers off +-inf."""
+        return {
+            "r_sym": ("lognormal", math.log(0.25), 1.0),
+            "r_asym": ("lognormal", math.log(0.25), 1.0),
+            "alpha": ("lognormal", 0.0, 1.0),
+            "memory": ("normal", 0.0, 4.0),
+        }
+
+    def describe(self):
+        """Gain, operator counts, polynomial, offset, normalisation, initial state (and fitted memory), orientation."""
+        v, w = np.asarray(self.v, dtype=float), np.asarray(self.w, dtype=float)
+        lines = [
+            f"EUPI: gain {float(self.gain):.4g}, {v.size} symmetric + {w.size} unparallel operators "
+            f"({int(np.sum(v > 1e-9) + np.sum(w > 1e-9))} with non-zero gain), "
+            f"poly {[round(float(x), 4) for x in np.asarray(self.poly, dtype=float)]}, offset {float(self.offset):.4g}, "
+            f"u_ref {float(self.u_ref):g}, u_span {float(self.u_span):g}, init {self.init}"
+        ]
+        if self.memory is not None:
+            frac = 1.0 / (1.0 + np.exp(-np.asarray(self.memory, dtype=float)))
+            lines.append(
+                f"operators at t = 0 (fitted memory; 0 = ascended, 1 = descended bound): median {np.median(frac):.2f}, "
+                f"range {frac.min():.2f}-{frac.max():.2f}"
+            )
+        return lines + [_orientation_line(self.orientation)]
 
     def _initial_state(self, s0, r, a):
         if self.init == "descended":

@@ -22,7 +22,10 @@ with the same state rule as the evaluation.  Its contract:
 - ``orientation`` (+1: the output rises with the input for non-negative weights, -1: it falls), which
   the integral-inverse compensator uses as the slope sign of its forward model;
 - ``from_range(u_min, u_max)`` (untrained model for an input range) and ``with_range`` (the same
-  structure rescaled to another range).
+  structure rescaled to another range);
+- optional, with defaults taken from the above: ``weight_scales()`` and ``nonlinear_priors()`` (the
+  sampler's priors: the weights' follow from their signs and scales, other trained fields are named
+  here) and ``describe()`` (the lines of a fit report).
 
 Composite models expose their hysteresis the same way: ``model.hysteresis`` (a hysteresis model is
 its own), ``model.with_hysteresis(h)`` and ``model.hysteresis_input(u, dt)``; `hysteresis_of`
@@ -49,7 +52,15 @@ import numpy as np
 
 from .. import _config  # noqa: F401
 
-__all__ = ["AbstractHysteresis", "hysteresis_of", "thermal_of", "hysteresis_models", "hysteresis_class", "column_weight_scales"]
+__all__ = [
+    "AbstractHysteresis",
+    "hysteresis_of",
+    "thermal_of",
+    "hysteresis_models",
+    "hysteresis_class",
+    "column_weight_scales",
+    "linear_field_columns",
+]
 
 
 class AbstractHysteresis(eqx.Module):
@@ -119,6 +130,16 @@ class AbstractHysteresis(eqx.Module):
     def fixed_fields(self, train: Collection[str] = ()) -> tuple[str, ...]:
         """Names of the array fields never trained or sampled; groups of `trainable_groups` named in ``train`` are trained."""
 
+    def nonlinear_priors(self) -> dict[str, tuple[str, float, float]]:
+        """The sampler's default priors of trainable fields outside the linear weights: ``{field: (dist, loc, scale)}``.
+
+        ``dist`` names a `smafl_jax.Prior` distribution, in the field's own units.  For the optional
+        `trainable_groups` and other nonlinear fields (a fitted initial state) that a fit may train; a field
+        left out gets a flat prior.  The linear weights' priors follow from `linear_fields`,
+        `nonnegative_columns` and `weight_scales` (`smafl_jax.bayes.default_priors`).  None by default.
+        """
+        return {}
+
     # -- state rule ------------------------------------------------------------
     @abc.abstractmethod
     def initial_state(self, x0) -> Any:
@@ -173,6 +194,25 @@ class AbstractHysteresis(eqx.Module):
         """``(thermal stage or None, hysteresis)``: the per-sample stages `smafl_jax.control.plant_step` runs (one here)."""
         return None, self
 
+    # -- report -------------------------------------------------------------------
+    def describe(self) -> list[str]:
+        """The key parameters for a fit report (``report.md``), one line each (markdown, no bullet).
+
+        This default needs only the protocol: weight count, non-zero non-negative weights, normalisation,
+        initial-state rule and orientation; a model overrides it with its own quantities.
+        """
+        w = np.asarray(self.linear_weights(), dtype=float)
+        nonneg = np.asarray(self.nonnegative_columns())
+        return [
+            f"{type(self).__name__}: {w.size} linear weights ({int(np.sum(nonneg & (w > 1e-9)))} of the {int(nonneg.sum())} "
+            f"non-negative ones non-zero), u_ref {float(self.u_ref):g}, u_span {float(self.u_span):g}, init {self.init}",
+            _orientation_line(self.orientation),
+        ]
+
+
+def _orientation_line(orientation) -> str:
+    return f"output orientation: {'rises' if orientation > 0 else 'falls'} with contraction"
+
 
 def hysteresis_of(model) -> AbstractHysteresis | None:
     """The hysteresis part of ``model`` (the model itself, a cascade's, an extended model's), or None."""
@@ -188,13 +228,22 @@ def thermal_of(model):
     return getattr(model, "thermal", None) if hysteresis_of(model) is not None else None
 
 
+def linear_field_columns(h: AbstractHysteresis) -> dict[str, np.ndarray]:
+    """``{linear field: the columns of features its weights multiply}`` (integer arrays, flattened field order)."""
+    p = int(np.shape(h.linear_weights())[0])
+    index = h.with_linear_weights(jnp.arange(p, dtype=jnp.float64))  # each field then holds its column numbers
+    return {field: np.asarray(getattr(index, field), dtype=int).ravel() for field in h.linear_fields()}
+
+
 def column_weight_scales(h: AbstractHysteresis) -> np.ndarray:
     """`AbstractHysteresis.weight_scales` spread over the columns of ``features`` (``(p,)``)."""
     p = int(np.shape(h.linear_weights())[0])
     index = h.with_linear_weights(jnp.arange(p, dtype=jnp.float64))  # each field then holds its column numbers
     out = np.ones(p)
+    linear = set(h.linear_fields())
     for field, scale in h.weight_scales().items():
-        out[np.asarray(getattr(index, field), dtype=int).ravel()] = scale
+        if field in linear:  # a scale for a field that is not a linear weight (a non-linear Preisach's gain) has no column
+            out[np.asarray(getattr(index, field), dtype=int).ravel()] = scale
     return out
 
 

@@ -60,3 +60,9 @@ class JouleLag(eqx.Module):
     def nonnegative_columns(self) -> np.ndarray:
         """The static gain is >= 0, the offset free."""
         return np.array([True, False])
+
+    def describe(self) -> list[str]:
+        """The thermal stage's lines, then the offset and the static gain, for a fit report (``report.md``)."""
+        th = self.thermal
+        gain = float(th.k2) / float(th.k1)
+        return [*th.describe(), f"offset = {float(self.offset):.6g}; static gain k2/k1 = {gain:.6g} per V^2"]

@@ -128,3 +128,11 @@ class JouleThermal(eqx.Module):
 
     def effective_voltage(self, theta):
         return effective_voltage(theta, self.k1, self.k2)
+
+    def describe(self) -> list[str]:
+        """The rates and the start state for a fit report (``report.md``), one line each."""
+        k1, k2 = float(self.k1), float(self.k2)
+        start = {"steady": "at rest with the first input", "ambient": "cold (ambient)"}.get(self.init, self.init)
+        if self.init == "given" and self.u0 is not None:
+            start = f"fitted: the state a constant {float(self.u0):.4g} V would hold"
+        return [f"thermal: k1 = {k1:.6g} 1/s (time constant {1 / k1:.4g} s), k2 = {k2:.6g}", f"thermal state at t = 0: {start}"]

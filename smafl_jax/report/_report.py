@@ -209,8 +209,9 @@ def write_diagnosis(out: Path, rec: Record, diagnosis: Diagnosis) -> None:
         save_model(out / "extended_fit.json", diagnosis.deployed_extended, **_fit_doc(rec, res, "extended", deployed=True))
         save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base"))
         save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
-    # EUPI/Cascade get the (empty) effect wrapper; ExtendedModel and base replacements (Preisach) run as they are
-    wrap = lambda m: ExtendedModel(m, ()) if type(m).__name__ in ("EUPI", "Cascade") else m
+    # the base (and the extended model when nothing was selected: then it is the base) runs in the (empty) effect
+    # wrapper, as it was scored; an extended model and a base replacement (Preisach) run as they are
+    wrap = lambda m: ExtendedModel(m, ()) if m is base else m
     ylabel = axis_label(rec.output_name, getattr(rec, "units", None))
     _plot(out / "residuals_before.png", split, lambda s: simulate_segment(wrap(base), s), f"{rec.name}: base model", ylabel)
     _plot(

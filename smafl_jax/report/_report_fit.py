@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import UserInputError
-from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_to_dict
+from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
 from ..identify._choose import auto_structure, fitted_memory_start, screen_start
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
@@ -23,7 +23,7 @@ from ..identify._metrics import metrics
 from ..identify._split import split_masks
 from ..models._cascade import Cascade
 from ..models._eupi import EUPI
-from ..models._hysteresis import hysteresis_class, hysteresis_of
+from ..models._hysteresis import hysteresis_class, hysteresis_of, thermal_of
 from ..models._joule_lag import JouleLag
 from ..models._range import EFFECTIVE_RULE, effective_values, value_range
 from ..models._simulate import simulate
@@ -107,7 +107,7 @@ def fit_record(
 
     ``model="auto"`` picks the structure from the input (`auto_structure`) and trains the play
     thresholds and tilts too (``thresholds`` / ``tilts`` None = on for auto, off otherwise).  For
-    every EUPI-based structure the output orientation and, for a cascade, the thermal start state
+    every structure with a hysteresis part the output orientation and, for a cascade, the thermal start state
     are screened on the training samples (`screen_start`) before the joint refinement.
     """
     if record.y is None:
@@ -258,7 +258,7 @@ def fit_record(
             "validation metrics are those of the model fitted on the training samples only; the saved model is refitted "
             "on the whole record with the same structure choices (split model in fit.json 'split_model'; --no-refit keeps it)"
         )
-    if structure == "cascade":
+    if thermal_of(final) is not None:  # a thermal lag in front of a hysteresis: k2 cancels (a cascade)
         notes.append(K2_NOTE)
         prof = (res.info or {}).get("profile") or screen_info.get("profile") or {}
         if prof.get("at_grid_edge"):
@@ -464,31 +464,10 @@ def _report_md(doc, files):
     lines += baselines_markdown(doc.get("baselines"), doc["metrics"]["validation"], doc["metrics"]["train"])
     lines += data_checks_markdown(doc.get("data_checks"))
     lines += ["", "## Parameters", ""]
-    if m["type"] in ("Cascade", "JouleLag"):
-        th = m["thermal"]
-        lines.append(f"- thermal: k1 = {th['k1']:.6g} 1/s (time constant {1 / th['k1']:.4g} s), k2 = {th['k2']:.6g}")
-        start = {"steady": "at rest with the first input", "ambient": "cold (ambient)"}.get(th.get("init"), th.get("init"))
-        if th.get("init") == "given" and th.get("u0") is not None:
-            start = f"fitted: the state a constant {th['u0']:.4g} V would hold"
-        lines.append(f"- thermal state at t = 0: {start}")
-    if m["type"] == "JouleLag":
-        lines.append(f"- offset = {m['offset']:.6g}; static gain k2/k1 = {m['thermal']['k2'] / m['thermal']['k1']:.6g} per V^2")
-    h = m.get("hysteresis") if m["type"] == "Cascade" else (m if m["type"] == "EUPI" else None)
-    if h is not None:
-        nz = sum(1 for x in h["v"] if x > 1e-9) + sum(1 for row in h["w"] for x in row if x > 1e-9)
-        lines.append(
-            f"- EUPI: gain {h['gain']:.4g}, {len(h['v'])} symmetric + {sum(len(r) for r in h['w'])} unparallel operators "
-            f"({nz} with non-zero gain), poly {[round(x, 4) for x in h['poly']]}, offset {h['offset']:.4g}, "
-            f"u_ref {h['u_ref']:g}, u_span {h['u_span']:g}, init {h['init']}"
-        )
-        if h.get("memory") is not None:
-            frac = 1.0 / (1.0 + np.exp(-np.asarray(h["memory"], dtype=float)))
-            lines.append(
-                f"- operators at t = 0 (fitted memory; 0 = ascended, 1 = descended bound): median {np.median(frac):.2f}, "
-                f"range {frac.min():.2f}-{frac.max():.2f}"
-            )
-        if h.get("orientation") is not None:
-            lines.append(f"- output orientation: {'rises' if h['orientation'] > 0 else 'falls'} with contraction")
+    # the saved model states its own key parameters (`describe`: thermal rates, hysteresis weights...); a model
+    # class without that method has only the pointer to fit.json
+    describe = getattr(model_from_dict(m, where=f"{d['file']}: model"), "describe", None)
+    lines += [f"- {line}" for line in (describe() if describe is not None else [])]
     lines.append("- full parameters: `fit.json`")
     if doc["notes"]:
         lines += ["", "## Notes", ""] + [f"- {n}" for n in doc["notes"]]
