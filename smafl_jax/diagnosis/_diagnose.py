@@ -334,11 +334,13 @@ def n_parameters(model):
 def _bvls(A, b, nonneg):
     """Bounded least squares (`smafl_jax.identify.linear.solve`: column-scaled, Cholesky-reduced BVLS).
 
-    No ``drop_constant`` and no ``clip`` here, unlike `smafl_jax.identify._fit`: the diagnosis keeps its earlier numbers.
+    No ``drop_constant`` and no ``clip`` here, unlike `smafl_jax.identify._fit` (`varpro.DIAGNOSE_SOLVE` vs
+    `varpro.FIT_SOLVE`): the diagnosis keeps its earlier numbers.
     """
     from ..identify.linear import solve
+    from ..identify.varpro import DIAGNOSE_SOLVE
 
-    return solve(A, b, nonneg, clip=False).x
+    return solve(A, b, nonneg, **DIAGNOSE_SOLVE).x
 
 
 def _design(model, segs):
@@ -533,7 +535,7 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     already in ``base`` (an `ExtendedModel`) start from their fitted values.
     Returns ``(model, info)``.
     """
-    from scipy.optimize import minimize
+    from ..identify import varpro
 
     release_if_needed()  # every candidate structure compiles anew: stay under the process's memory-map limit
     ctx = _context(split)
@@ -547,36 +549,33 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     if k1_grid is not None and thermal_of(start) is not None:
         starts = [eqx.tree_at(lambda m: m.base.thermal.k1, c, jnp.asarray(k)) for c in starts for k in k1_grid]
     t0 = time.time()
-    scored = sorted(((profile_gains(m, split.train)[1], i) for i, m in enumerate(starts)), key=lambda t: t[0])
-    if not np.isfinite(scored[0][0]):
-        raise UserInputError("every starting point of the fit gave a non-finite output")
-    best = starts[scored[0][1]]
-    lay = _phi_layout(best, ctx)
-    n_eval = len(starts)
-    if lay:
-        phi0 = _get_phi(best, lay)
-        cache = {}
+    lay = _phi_layout(starts[0], ctx)  # every start has the same structure, so the same layout
 
-        def objective(phi):
-            key = tuple(np.round(phi, 12))
-            if key not in cache:
-                _, sse = profile_gains(_set_phi(best, lay, phi), split.train)
-                cache[key] = sse if np.isfinite(sse) else 1e300
-            return cache[key]
+    def project(phi, best):
+        m, sse = profile_gains(_set_phi(best, lay, phi), split.train)
+        return varpro.Profiled(sse, m)
 
-        simplex = [phi0] + [phi0 + np.eye(len(lay))[i] * lay[i][3] for i in range(len(lay))]
-        res = minimize(
-            objective,
-            phi0,
-            method="Nelder-Mead",
-            options={"initial_simplex": np.array(simplex), "maxiter": max_iter or 150 * len(lay), "xatol": 1e-4, "fatol": 1e-10},
-        )
-        best = _set_phi(best, lay, res.x)
-        n_eval += len(cache)
-        converged = bool(res.success)
-    else:
-        converged = True
-    model, sse = profile_gains(best, split.train)
+    # Nelder-Mead from the best start: one simplex step per parameter (its transform's scale), the loss memoised on
+    # the point rounded to 12 decimals (the simplex revisits points), a non-finite loss counted as 1e300
+    nm = varpro.NelderMead(
+        steps=[step for *_, step in lay],
+        maxiter=max_iter or 150 * len(lay),
+        xatol=1e-4,
+        fatol=1e-10,
+        cache_decimals=12,
+        bad=1e300,
+    )
+    res = varpro.search(
+        project,
+        starts,
+        x_of=lambda m: _get_phi(m, lay),
+        score=lambda m: profile_gains(m, split.train)[1],
+        refine=nm if lay else None,
+        none_finite="every starting point of the fit gave a non-finite output",
+    )
+    model, sse = res.profiled.model, res.profiled.loss
+    n_eval = len(starts) + res.n_evals
+    converged = res.converged
     info = {
         "n_starts": len(starts),
         "n_evaluations": n_eval,

@@ -2,7 +2,8 @@
 
 The fit itself (profiled initialiser + joint refinement), the automatic start (structure, output
 orientation, thermal start), the linear solver shared by fit, diagnose and the Preisach cross-validation,
-train/validation splits, the decimated view of long records, several records at once,
+the variable-projection search shared by the fit's k1 profile, the thermal-start search and the diagnosis
+(`varpro`), train/validation splits, the decimated view of long records, several records at once,
 recalibration on a new run, the baselines set beside every fit and the error metrics.
 """
 
@@ -30,12 +31,19 @@ from ._multi_record import add_record_extras, data_checks_doc, data_checks_markd
 from ._recalibrate import CALIBRATION_PARAMETERS, Recalibrated, after_segment_metrics, recalibrate, segment_indices
 from ._split import SPLITS, split_masks
 from .linear import METHODS, LinearSolution, column_scale, solve
+from .varpro import Bounded, LinearProjection, NelderMead, Profiled, Search, search
 
 __all__ = [
     "METHODS",
     "LinearSolution",
     "column_scale",
     "solve",
+    "Profiled",
+    "LinearProjection",
+    "Bounded",
+    "NelderMead",
+    "Search",
+    "search",
     "FitResult",
     "fit",
     "fit_many",

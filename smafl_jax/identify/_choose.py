@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
+from .._compile_cache import release_if_needed
 from .._errors import UserInputError
 from ..models._hysteresis import thermal_of
 from ._fit import as_fit_data, fit
@@ -98,44 +99,54 @@ def refine_thermal_start(model, data, weights, u_hi, *, max_evals=80):
     """2-D variable projection over ``(log k1, u0)`` from a profiled cascade with a given start.
 
     Every point profiles the gains out by bounded least squares, so the search is over the two
-    thermal parameters only (Nelder-Mead).  Why: the thermal rate and the start temperature trade
-    off against each other on a record that starts away from rest (a cold start looks like a slow
-    lag), and the 1-D k1 profile at a handful of fixed starts misses the joint optimum; measured on
-    independent cold / half-warm multisine records, the best of 4 fixed starts was 4x off in k1.
-    Returns ``(loss, model, info)``.
+    thermal parameters only (Nelder-Mead, `smafl_jax.identify.varpro.search`).  Why: the thermal rate
+    and the start temperature trade off against each other on a record that starts away from rest (a
+    cold start looks like a slow lag), and the 1-D k1 profile at a handful of fixed starts misses the
+    joint optimum; measured on independent cold / half-warm multisine records, the best of 4 fixed
+    starts was 4x off in k1.  Each point is scored as `fit` scores an initialiser (the simulated loss of
+    the profiled model), and the best point evaluated is kept.  Returns ``(loss, model, info)``.
     """
-    from scipy.optimize import minimize
+    from . import varpro
+    from ._fit import _as_weights, _linear_part, _residuals_jit, _set_k1, k1_projection
 
-    from ._fit import _set_k1
+    release_if_needed()  # as `fit` does: long screenings compile many programs
+    data = as_fit_data(data)
+    part = _linear_part(model)
+    try:
+        weights = _as_weights(weights, data)
+    except UserInputError:
+        return np.inf, model, {"refine_evals": 0}
+    args = tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d), jnp.asarray(w)) for (u, y, d), w in zip(data, weights))
 
-    def objective(x):
+    def project(x, start):
         frac = float(x[1])
         if not 0.0 < frac <= 1.0:
-            return np.inf
-        m = _set_k1(model, float(np.exp(x[0]))).with_thermal_start("given", frac * u_hi)
-        got = _profiled(m, data, weights, np.array([float(np.exp(x[0]))]))
-        if got is None:
-            return np.inf
-        if got[0] < best[0]:
-            best[:] = list(got)
-        return got[0]
+            return varpro.Profiled(np.inf)
+        k1 = float(np.exp(x[0]))
+        if not (np.isfinite(k1) and k1 > 0):  # `fit` refused such a k1 candidate
+            return varpro.Profiled(np.inf)
+        m = _set_k1(start, k1).with_thermal_start("given", frac * u_hi)
+        # the gains at this point: the k1 projection at its own log k1 (as `fit` with the one-point k1 grid [k1] did)
+        got = k1_projection(m, data, weights, part)(np.array([np.log(k1)]))
+        if got.model is None:
+            return varpro.Profiled(np.inf)
+        r = np.asarray(_residuals_jit(got.model, args))
+        loss = 0.5 * float(r @ r)
+        return varpro.Profiled(loss, got.model) if np.isfinite(loss) else varpro.Profiled(np.inf)
 
     u0 = float(model.thermal.u0) if model.thermal.init == "given" else float(np.asarray(data[0][0])[0])
     x0 = np.array([np.log(float(model.thermal.k1)), min(max(u0 / u_hi, COLD_FRACTION), 1.0)])
-    best = [np.inf, model, {}]
-    res = minimize(
-        objective,
-        x0,
-        method="Nelder-Mead",
-        options={
-            "maxfev": int(max_evals),
-            "xatol": 1e-3,
-            "fatol": 0.0,
-            "initial_simplex": x0 + np.array([[0, 0], [0.3, 0], [0, 0.1]]),
-        },
+    res = varpro.search(
+        project,
+        [model],
+        x_of=lambda _: x0,
+        refine=varpro.NelderMead(steps=(0.3, 0.1), maxfev=int(max_evals), xatol=1e-3, fatol=0.0),
+        reproject=False,
     )
-    best[2] = {**(best[2] or {}), "refine_evals": int(res.nfev)}
-    return tuple(best)
+    best = res.best_seen
+    if best.model is None:
+        return np.inf, model, {"refine_evals": res.n_evals}
+    return best.loss, best.model, {"refine_evals": res.n_evals}
 
 
 def screen_start(

@@ -45,6 +45,8 @@ from .._errors import UserInputError
 from .._progress import count_step
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ..models._hysteresis import hysteresis_of, thermal_of
+from . import varpro
+from .varpro import FIT_SOLVE
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
 
@@ -193,12 +195,12 @@ def default_trainable(model, *, thresholds=False, tilts=False):
 def _bvls(A, b, nonneg):
     """Bounded LS ``min |A x - b|`` with ``x[nonneg] >= 0``: `smafl_jax.identify.linear.solve`; returns ``(x, loss)``.
 
-    Column-scaled, Cholesky-reduced BVLS; operators the training samples never moved get gain 0
-    (``drop_constant``); ``jitter_of="trace"`` and ``rhs="transpose"`` keep the fit's earlier numbers exactly.
+    The fit's options (`varpro.FIT_SOLVE`): column-scaled, Cholesky-reduced BVLS; operators the training samples
+    never moved get gain 0; ``jitter_of="trace"`` and ``rhs="transpose"`` keep the fit's earlier numbers exactly.
     """
     from .linear import solve
 
-    sol = solve(A, b, nonneg, jitter=1e-13, jitter_of="trace", rhs="transpose", drop_constant=True)
+    sol = solve(A, b, nonneg, **FIT_SOLVE)
     return sol.x, sol.loss
 
 
@@ -216,12 +218,6 @@ def _stack_rows(blocks, data, weights):
 @eqx.filter_jit
 def _features(feats, model, u, dt):
     return feats(model, u, dt)
-
-
-@eqx.filter_jit
-def _features_k1_grid(feats, model, k1s, u, dt):
-    # one vmap over the thermal + operator scans for all k1 candidates
-    return jax.vmap(lambda k: feats(_set_k1(model, k), u, dt))(k1s)
 
 
 def _check_finite_features(A, i, u):
@@ -273,12 +269,32 @@ def _default_k1_grid(data, n):
     return np.geomspace(0.2 / t_max, 5.0 / dt_min, int(n))
 
 
+def _set_log_k1(model, log_k1):
+    return _set_k1(model, np.exp(log_k1[0]))
+
+
+def k1_projection(model: Any, data: tuple, weights: tuple, part: tuple | None = None) -> varpro.LinearProjection:
+    """The fit's variable projection over ``x = [log k1]``: `varpro.LinearProjection` with the gains by BVLS.
+
+    ``data`` / ``weights``: normalised (`as_fit_data`, `_as_weights`); ``part``: `_linear_part(model)` when known.
+    Used by `init_profile` and by `smafl_jax.identify._choose.refine_thermal_start` (at each point's own k1).
+    """
+    feats, nonneg, setw = _linear_part(model) if part is None else part
+
+    def design(m):
+        return _stack_rows([_features(feats, m, jnp.asarray(u), jnp.asarray(d)) for u, _, d in data], data, weights)
+
+    return varpro.LinearProjection(lambda x: _set_log_k1(model, x), design, nonneg, setw, FIT_SOLVE)
+
+
 def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True, progress=False):
     """Variable-projection initialiser: best ``k1`` with the gains profiled out by BVLS.
 
     ``k1_grid`` is a number of log-spaced candidates (see `_default_k1_grid`) or
-    an explicit array; the model's own ``k1`` is always tried as well.  Returns
-    ``(model, info)`` with the grid, the profiled loss on it and the refined k1.
+    an explicit array; the model's own ``k1`` is always tried as well.  The grid is
+    evaluated in vmapped chunks, and the best candidate refined by a bounded 1-D
+    search on ``log k1`` between its neighbours (`smafl_jax.identify.varpro.search`).
+    Returns ``(model, info)`` with the grid, the profiled loss on it and the refined k1.
     """
     data = as_fit_data(data, dt)
     weights = _as_weights(weights, data)
@@ -295,59 +311,45 @@ def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True,
     # chunk the vmapped grid so the stacked design matrices stay under ~64 MB
     chunk = int(max(1, min(grid.size, (64 << 20) // (8 * n_rows * n_cols))))
     t0 = time.perf_counter()
-    losses = np.full(grid.size, np.inf)
-    for start in range(0, grid.size, chunk):
-        ks = grid[start : start + chunk]
-        if ks.size < chunk:  # pad so every chunk has one shape (one compile)
-            ks = np.concatenate([ks, np.full(chunk - ks.size, ks[-1])])
+
+    def evaluate(ks, n):
+        # one vmap over the thermal + operator scans for all k1 candidates of the chunk (padded to one shape)
         blocks = [
-            np.asarray(_features_k1_grid(feats, model, jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d))) for u, _, d in data
+            np.asarray(varpro.batch_design(feats, _set_k1, model, jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d)))
+            for u, _, d in data
         ]
-        for j in range(min(chunk, grid.size - start)):
-            A, b = _stack_rows([blk[j] for blk in blocks], data, weights)
-            if np.all(np.isfinite(A)):
-                losses[start + j] = _bvls(A, b, nonneg)[1]
-        if progress:
-            print(f"  profile: {min(start + chunk, grid.size)}/{grid.size} k1 candidates", file=sys.stderr)
-    if not np.any(np.isfinite(losses)):
-        raise UserInputError("the model output is not finite for any k1 candidate; check the input units and range")
+        out = np.full(n, np.inf)
+        for j in range(n):
+            sol = varpro.solve_gains(*_stack_rows([blk[j] for blk in blocks], data, weights), nonneg, FIT_SOLVE)
+            if sol is not None:
+                out[j] = sol.loss
+        return out
 
-    def profiled(log_k1):
-        m = _set_k1(model, np.exp(log_k1))
-        blocks = [_features(feats, m, jnp.asarray(u), jnp.asarray(d)) for u, _, d in data]
-        A, b = _stack_rows(blocks, data, weights)
-        if not np.all(np.isfinite(A)):
-            return np.inf, None
-        return _bvls(A, b, nonneg)[::-1]
+    def report(done, total):
+        print(f"  profile: {done}/{total} k1 candidates", file=sys.stderr)
 
-    best = int(np.argmin(losses))
-    log_k1 = float(np.log(grid[best]))
-    n_eval = 0
-    if refine and 0 < best < grid.size - 1:
-        from scipy.optimize import minimize_scalar
-
-        res = minimize_scalar(
-            lambda x: profiled(x)[0],
-            bounds=(np.log(grid[best - 1]), np.log(grid[best + 1])),
-            method="bounded",
-            options={"xatol": 1e-7},
-        )
-        n_eval = int(res.nfev)
-        if res.fun <= losses[best]:
-            log_k1 = float(res.x)
-    loss, theta = profiled(log_k1)
-    k1 = float(np.exp(log_k1))
-    fitted = setw(_set_k1(model, k1), jnp.asarray(theta))
+    losses = varpro.grid_losses(evaluate, grid, chunk, progress=report if progress else None)
+    res = varpro.search(
+        k1_projection(model, data, weights, part),
+        grid,
+        x_of=lambda k: np.array([np.log(k)]),
+        losses=losses,
+        refine=varpro.Bounded(xatol=1e-7) if refine else None,
+        none_finite="the model output is not finite for any k1 candidate; check the input units and range",
+    )
+    if res.profiled.model is None:
+        raise UserInputError("the model output is not finite at the profiled k1; check the input units and range")
+    k1 = float(np.exp(res.x[0]))
     info = {
         "k1_grid": grid.tolist(),
         "profile_loss": losses.tolist(),
         "k1": k1,
-        "loss": float(loss),
-        "at_grid_edge": bool(best in (0, grid.size - 1)),
-        "n_refine_evals": n_eval,
+        "loss": float(res.profiled.loss),
+        "at_grid_edge": bool(res.start in (0, grid.size - 1)),
+        "n_refine_evals": res.n_evals,
         "seconds": time.perf_counter() - t0,
     }
-    return fitted, info
+    return res.profiled.model, info
 
 
 # -- stage 2: joint refinement -------------------------------------------------------
