@@ -137,7 +137,7 @@ def scaling_plot(doc, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from smafl_jax._io import atomic_savefig
+    from smafl_jax import atomic_savefig
 
     ops = doc["sections"].get("operators", {}).get("scaling", [])
     extra = {}
@@ -186,7 +186,7 @@ def scaling_plot(doc, path):
 
 def update_readme(doc, readme):
     """Replace the performance section of README.md (between its markers) with the summary table."""
-    from smafl_jax._io import atomic_write_text
+    from smafl_jax import atomic_write_text
 
     text = readme.read_text()
     if README_MARK not in text:
@@ -246,7 +246,7 @@ def main(argv=None):
 
     import json
 
-    from smafl_jax._io import atomic_write_json, atomic_write_text, prepare_out_dir, to_jsonable
+    from smafl_jax import atomic_write_json, atomic_write_text, prepare_out_dir, to_jsonable
 
     out = prepare_out_dir(args.out)
     if args.render:

@@ -38,7 +38,7 @@ def _setup(quick):
     import jax.numpy as jnp
 
     import smafl_jax as sj
-    from smafl_jax.control._control import PID, ClosedLoop, IICompensator, sine_reference
+    from smafl_jax.control import PID, ClosedLoop, IICompensator, sine_reference
 
     truth = sj.load_model(ROOT / "datasets" / "truth.json")
     dt = 0.01
@@ -201,7 +201,7 @@ def _control_sim(P, kp, ki, ref, dt, K=10.0, umax=7.4):
 def run(quick: bool = False) -> list[dict]:
     import jax
 
-    from smafl_jax.control._sweep import sweep
+    from smafl_jax.control import sweep
 
     truth, dt, ref, loop, kps, kis = _setup(quick)
     n_steps = len(ref)

@@ -33,7 +33,7 @@ def run(quick=False):
     import indep_plant
 
     import smafl_jax as sj
-    from smafl_jax.report._report_fit import fit_record
+    from smafl_jax.report import fit_record
 
     minutes = 5.0 if quick else 20.0
     r = indep_plant.make_record(7, drive="pwm", rate_hz=25, minutes=minutes, start="cold")

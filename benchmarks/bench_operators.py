@@ -88,7 +88,7 @@ def numpy_bank(u, r, a, y0):
 def _jax_kernels():
     import jax
 
-    from smafl_jax.models._operators import play_assoc, play_scan, play_weighted
+    from smafl_jax.models import play_assoc, play_scan, play_weighted
 
     scan = jax.jit(lambda u, r, a, y0: play_scan(u, r, a, y0))
     assoc = jax.jit(lambda u, r, a, y0: play_assoc(u, r, a, y0))

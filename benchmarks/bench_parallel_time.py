@@ -74,7 +74,7 @@ def _child(workload, T, methods, repeat):
     import jax.numpy as jnp
     import numpy as np
 
-    from smafl_jax.models._operators import choose_model_method
+    from smafl_jax.models import choose_model_method
 
     model, n_ops = _model(workload.removesuffix("-grad"))
     u = jnp.asarray(_drive(T))

@@ -7,8 +7,8 @@ import json
 from pathlib import Path
 
 import smafl_jax as sj
-from smafl_jax._io import to_jsonable
-from smafl_jax.paper import _paper
+from smafl_jax import paper as _paper
+from smafl_jax import to_jsonable
 
 ROOT = Path(__file__).resolve().parents[1]
 

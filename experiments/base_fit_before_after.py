@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(root).resolve()))
 import indep_plant as ip  # noqa: E402
 
 import smafl_jax as sj  # noqa: E402
-from smafl_jax.report._report_fit import fit_record  # noqa: E402
+from smafl_jax.report import fit_record  # noqa: E402
 
 CELLS = {
     "multisine, cold, 25 Hz": dict(drive="multisine", rate_hz=25, start="cold"),

@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 import indep_plant  # noqa: E402
 
 import smafl_jax as sj  # noqa: E402
-from smafl_jax.report._report_fit import fit_record  # noqa: E402
+from smafl_jax.report import fit_record  # noqa: E402
 
 RESULTS = ROOT / "experiments" / "results"
 

@@ -39,22 +39,15 @@ COMPETITORS = ("output_saturation", "rate_dependence", "asymmetric_cooling", "cr
 
 
 def _train_loss(model, split):
-    from smafl_jax.diagnosis._diagnose import _train_sse
+    from smafl_jax.diagnosis._diagnose import _train_sse  # private: diagnosis helper, no public equivalent
 
     return _train_sse(model, split.train)
 
 
 def run(truth, seed, folder):
     import smafl_jax as sj
-    from smafl_jax.diagnosis._diagnose import (
-        _held,
-        choose_base,
-        fit_extended,
-        make_split,
-        refine_model,
-        refined_base,
-        screened_base,
-    )
+    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, refine_model, refined_base, screened_base
+    from smafl_jax.diagnosis._diagnose import _held  # private: diagnosis helper, no public equivalent
 
     path, case = ie.write_effect_record(folder, truth, seed)
     rec = sj.load_record(path)

@@ -22,15 +22,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 import smafl_jax as sj
-from smafl_jax.control._control import (
-    PAPER_GAINS,
-    PID,
-    ClosedLoop,
-    IICompensator,
-    simulate_closed_loop,
-    sine_reference,
-    step_reference,
-)
+from smafl_jax.control import PAPER_GAINS, PID, ClosedLoop, IICompensator, simulate_closed_loop, sine_reference, step_reference
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = {("sine", "composite"): 0.0027, ("step", "composite"): 0.0004, ("sine", "pid"): 0.0030, ("step", "pid"): 0.0009}

@@ -32,7 +32,7 @@ def _gen():
 def run_one(args):
     effect, seed = args
     import smafl_jax as sj
-    from smafl_jax.diagnosis._diagnose import diagnose, synthetic_effect_record
+    from smafl_jax.diagnosis import diagnose, synthetic_effect_record
 
     truth = sj.load_model(ROOT / "datasets" / "truth.json")
     rec, true = synthetic_effect_record(truth, _gen().drives(), effect, seed)

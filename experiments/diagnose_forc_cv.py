@@ -21,7 +21,8 @@ FIXED = (["output_saturation"], ["input_warp"], ["output_saturation", "input_war
 
 def main(argv=None):
     from smafl_jax import atomic_write_json, load_record
-    from smafl_jax.diagnosis._diagnose import _metrics_pair, diagnose, fit_extended
+    from smafl_jax.diagnosis import diagnose, fit_extended
+    from smafl_jax.diagnosis._diagnose import _metrics_pair  # private: diagnosis helper, no public equivalent
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))

@@ -36,7 +36,7 @@ def _label(sel):
 
 def run_one(name, seed, folder, n_null, fpr):
     import smafl_jax as sj
-    from smafl_jax.diagnosis._diagnose import diagnose
+    from smafl_jax.diagnosis import diagnose
 
     path, case = ie.write_effect_record(folder, name, seed)
     rec = sj.load_record(path)
@@ -123,7 +123,7 @@ def fpr_check(n_records, n_null, fpr, seed=0):
     import numpy as np
 
     import smafl_jax as sj
-    from smafl_jax.diagnosis._diagnose import diagnose
+    from smafl_jax.diagnosis import diagnose
     from smafl_jax.effects import ExtendedModel
 
     spec = importlib.util.spec_from_file_location("gen", ROOT / "datasets" / "generate.py")
@@ -156,8 +156,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--fpr-check", type=int, default=0, help="only measure the false-positive rate on N clean records")
     a = ap.parse_args(argv)
-    from smafl_jax import atomic_write_json
-    from smafl_jax._io import atomic_write_text, to_jsonable
+    from smafl_jax import atomic_write_json, atomic_write_text, to_jsonable
 
     if a.fpr_check:
         res = fpr_check(a.fpr_check, a.n_null, a.fpr, a.seed)

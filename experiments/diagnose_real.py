@@ -22,8 +22,8 @@ RECORDS = [
 
 def main(argv=None):
     from smafl_jax import atomic_write_json, atomic_write_text, load_record, prepare_out_dir
-    from smafl_jax.diagnosis._diagnose import diagnose
-    from smafl_jax.report._report import write_diagnosis
+    from smafl_jax.diagnosis import diagnose
+    from smafl_jax.report import write_diagnosis
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))

@@ -18,7 +18,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import smafl_jax as sj
-from smafl_jax.report._report_fit import MODELS, fit_record, write_fit_outputs
+from smafl_jax.report import MODELS, fit_record, write_fit_outputs
 
 COLUMNS = [
     "file",

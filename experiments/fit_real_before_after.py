@@ -39,7 +39,7 @@ root, out = sys.argv[1], sys.argv[2]
 data = Path(sys.argv[3] if len(sys.argv) > 3 else Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real")
 sys.path.insert(0, str(Path(root).resolve()))
 import smafl_jax as sj  # noqa: E402
-from smafl_jax.report._report_fit import fit_record  # noqa: E402
+from smafl_jax.report import fit_record  # noqa: E402
 
 rows = []
 for name, kw in JOBS:

@@ -70,8 +70,8 @@ def neighbour_interpolation(train, test_seg):
 def lobo(rec, u_min, u_max, verbose=True):
     """Leave-one-branch-out over the descending FORCs (branch 0 always trains), nested inner CV; pooled metrics."""
     from smafl_jax import metrics
-    from smafl_jax.diagnosis._diagnose import whole_record_split
-    from smafl_jax.models._preisach import cv_fit_preisach
+    from smafl_jax.diagnosis import whole_record_split
+    from smafl_jax.models import cv_fit_preisach
 
     segs = whole_record_split(rec).train
     labels = list(dict.fromkeys(np.asarray(rec.extra["branch"]).astype(int).tolist()))
@@ -103,7 +103,7 @@ def lobo(rec, u_min, u_max, verbose=True):
         yh.append(p)
     m = metrics(np.concatenate(ys), np.concatenate(yh))
     out = {"pooled": m, "branches": per, "fixed_everett_35": {}}
-    from smafl_jax.models._preisach import EVERETT_INTERPOLANTS, Preisach, fit_everett
+    from smafl_jax.models import EVERETT_INTERPOLANTS, Preisach, fit_everett
 
     for interp in EVERETT_INTERPOLANTS:  # for reference: one fixed identification, no inner choice
         ys2, yh2 = [], []
@@ -120,9 +120,10 @@ def lobo(rec, u_min, u_max, verbose=True):
 
 def main(argv=None):
     from smafl_jax import atomic_write_json, load_record, metrics
-    from smafl_jax.diagnosis._diagnose import _metrics_pair, choose_base, fit_extended, make_split, n_parameters
+    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, n_parameters
+    from smafl_jax.diagnosis._diagnose import _metrics_pair  # private: diagnosis helper, no public equivalent
     from smafl_jax.effects import ExtendedModel
-    from smafl_jax.models._preisach import EVERETT_INTERPOLANTS, LAM_GRID, N_LEVELS_GRID, Preisach, cv_fit_preisach, fit_everett
+    from smafl_jax.models import EVERETT_INTERPOLANTS, LAM_GRID, N_LEVELS_GRID, Preisach, cv_fit_preisach, fit_everett
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))

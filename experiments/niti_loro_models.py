@@ -432,7 +432,7 @@ def main(argv=None):
     if a.markdown_only:
         import json
 
-        from smafl_jax._io import atomic_write_text
+        from smafl_jax import atomic_write_text
 
         out = json.loads(Path(a.out + ".json").read_text())
         atomic_write_text(
@@ -443,8 +443,7 @@ def main(argv=None):
     summ = summary(out)
     out["summary"] = summ
     out["command"], out["seconds"] = cmd, time.perf_counter() - t0
-    from smafl_jax import atomic_write_json
-    from smafl_jax._io import atomic_write_text
+    from smafl_jax import atomic_write_json, atomic_write_text
 
     atomic_write_json(Path(a.out + ".json"), out)
     atomic_write_text(Path(a.out + ".md"), markdown(out, summ, cmd, time.perf_counter() - t0))

@@ -44,7 +44,7 @@ def _spec(model):
     import equinox as eqx
 
     from smafl_jax.effects.extended import ExtendedModel
-    from smafl_jax.models._hysteresis import hysteresis_of
+    from smafl_jax.models import hysteresis_of
 
     spec = model.trainable_spec(load=False) if isinstance(model, ExtendedModel) else None
     h = hysteresis_of(model)
@@ -57,7 +57,7 @@ def _spec(model):
 
 
 def refine(model, split, max_steps=200):
-    from smafl_jax.identify._fit import fit
+    from smafl_jax.identify import fit
 
     data, w = _train_data(split)
     res = fit(model, data, trainable=_spec(model), init=None, weights=w, max_steps=max_steps)
@@ -66,15 +66,15 @@ def refine(model, split, max_steps=200):
 
 
 def held(model, split):
-    from smafl_jax.diagnosis._diagnose import score
+    from smafl_jax.diagnosis import score
 
     return score(model, split.test)[0]["rmse"]
 
 
 def run(truth, seed, folder, effects):
     import smafl_jax as sj
-    from smafl_jax.diagnosis._diagnose import choose_base, fit_extended, make_split, screened_base
-    from smafl_jax.identify._choose import fitted_memory_start
+    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, screened_base
+    from smafl_jax.identify import fitted_memory_start
 
     path, case = ie.write_effect_record(folder, truth, seed)
     rec = sj.load_record(path)

@@ -53,7 +53,7 @@ def _rebased(rec):
 def _score(model, rec, segment, fit):
     """Raw and re-anchored metrics after ``segment`` (a slice of samples) of ``rec``."""
     from smafl_jax import recalibrate, simulate
-    from smafl_jax.identify._recalibrate import after_segment_metrics
+    from smafl_jax.identify import after_segment_metrics
 
     t = time.perf_counter()
     cal, info = recalibrate(model, rec.u, rec.y, rec.dt, segment, fit=fit)
@@ -75,7 +75,7 @@ def _score(model, rec, segment, fit):
 
 def niti(data: Path, log):
     from smafl_jax import load_record
-    from smafl_jax.identify._multi_record import fit_records
+    from smafl_jax.identify import fit_records
 
     rows = []
     families = {
@@ -116,7 +116,7 @@ def forc(data: Path, log):
     from forc_preisach_cv import neighbour_interpolation
 
     from smafl_jax import load_record, metrics
-    from smafl_jax.report._report_fit import fit_record
+    from smafl_jax.report import fit_record
 
     rec = load_record(data / "sma_wing_forc_train.csv")
     b = np.asarray(rec.extra["branch"]).astype(int)

@@ -41,8 +41,13 @@ VARIANTS = [
 
 def main(argv=None):
     from smafl_jax import EUPI, atomic_write_json, atomic_write_text, load_record
-    from smafl_jax.diagnosis._diagnose import Split, _effect_params, _metrics_pair, _segment, fit_extended
-    from smafl_jax.identify._baselines import fit_static_poly
+    from smafl_jax.diagnosis import Split, fit_extended
+    from smafl_jax.diagnosis._diagnose import (  # private: diagnosis helpers, no public equivalent
+        _effect_params,
+        _metrics_pair,
+        _segment,
+    )
+    from smafl_jax.identify import fit_static_poly
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "real"))

@@ -12,7 +12,24 @@ from importlib import import_module as _import_module
 
 from ._errors import DataError, UserInputError
 
-__version__ = "0.1.0"
+
+def _package_version() -> str:
+    """The installed distribution's version; from a source tree that is not installed, pyproject.toml's."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("smafl-jax")
+    except PackageNotFoundError:
+        try:
+            import tomllib
+
+            with open(_os.path.join(_os.path.dirname(__file__), _os.pardir, "pyproject.toml"), "rb") as f:
+                return str(tomllib.load(f)["project"]["version"])
+        except (OSError, KeyError, ValueError):
+            return "0.0.0+unknown"
+
+
+__version__ = _package_version()
 
 # The public names are imported on first use (PEP 562), so that `smafl --help` and `import smafl_jax`
 # do not pay for importing JAX, SciPy and matplotlib.  x64 must hold before any array is made: if

@@ -23,6 +23,7 @@ import os
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -52,7 +53,10 @@ VERSION = 1
 _REGISTRY: dict[str, type] = {}
 
 
-def register_model(cls):
+_Class = TypeVar("_Class", bound=type)
+
+
+def register_model(cls: _Class) -> _Class:
     """Class decorator: make an `equinox.Module` model loadable from JSON by its class name."""
     _REGISTRY[cls.__name__] = cls
     return cls
@@ -63,7 +67,7 @@ def _is_jax_array(x):
     return jax is not None and isinstance(x, jax.Array)
 
 
-def to_jsonable(x):
+def to_jsonable(x: Any) -> Any:
     """Arrays -> nested lists, numpy scalars -> Python, NaN/inf -> None (strict JSON)."""
     if isinstance(x, dict):
         return {str(k): to_jsonable(v) for k, v in x.items()}
@@ -89,7 +93,7 @@ def _registered(name):
     return _REGISTRY.get(name)
 
 
-def model_to_dict(model):
+def model_to_dict(model: Any) -> dict[str, Any]:
     """Named-field dict of a registered model (recursive)."""
     import equinox as eqx
 
@@ -126,7 +130,7 @@ def _check_positive_field(f, arr, where):
         raise UserInputError(f"{where}: must be {need}, got {value:g}")
 
 
-def model_from_dict(d, *, where="model"):
+def model_from_dict(d: Any, *, where: str = "model") -> Any:
     """Inverse of `model_to_dict`; errors name the offending entry."""
     import jax.numpy as jnp
 
@@ -167,7 +171,7 @@ def model_from_dict(d, *, where="model"):
         raise UserInputError(f"{where}: cannot build {name}: {exc}") from None
 
 
-def save_model(path, model, **extra):
+def save_model(path: str | os.PathLike, model: Any, **extra: Any) -> None:
     """Write ``model`` (and any JSON-able ``extra`` entries) to ``path`` atomically."""
     doc = {"format": FORMAT, "version": VERSION, "model": model_to_dict(model)}
     doc.update(to_jsonable(extra))
@@ -188,7 +192,7 @@ def read_json_file(path, what="file"):
     return doc
 
 
-def load_model_file(path):
+def load_model_file(path: str | os.PathLike) -> tuple[Any, dict[str, Any]]:
     """``(model, document)`` from a model file or a ``fit.json``."""
     doc = read_json_file(path)
     if "model" not in doc:
@@ -196,7 +200,7 @@ def load_model_file(path):
     return model_from_dict(doc["model"], where=f"{path}: model"), doc
 
 
-def load_model(path):
+def load_model(path: str | os.PathLike) -> Any:
     """The model stored in a model file or ``fit.json``."""
     return load_model_file(path)[0]
 
@@ -298,15 +302,15 @@ def atomic_write_bytes(path, data: bytes):
         _IN_FLIGHT.discard(tmp)
 
 
-def atomic_write_text(path, text: str):
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def atomic_write_json(path, obj):
+def atomic_write_json(path: str | os.PathLike, obj: Any) -> None:
     atomic_write_text(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
 
 
-def atomic_savefig(fig, path, **kwargs):
+def atomic_savefig(fig: Any, path: str | os.PathLike, **kwargs: Any) -> None:
     """Save a matplotlib figure atomically (format from the file suffix)."""
     path = Path(path)
     buf = io.BytesIO()
@@ -316,7 +320,7 @@ def atomic_savefig(fig, path, **kwargs):
     atomic_write_bytes(path, buf.getvalue())
 
 
-def atomic_write_csv(path, columns: dict, *, fmt="%.10g"):
+def atomic_write_csv(path: str | os.PathLike, columns: dict, *, fmt: str = "%.10g") -> None:
     """Write named equal-length 1-D columns as a CSV with a header."""
     names = list(columns)
     arrs = [np.asarray(columns[n], dtype=np.float64) for n in names]
@@ -347,7 +351,7 @@ def check_writable_file(path, what="output file"):
     return path
 
 
-def prepare_out_dir(out, *, announce=True, stream=None):
+def prepare_out_dir(out: str | os.PathLike, *, announce: bool = True) -> Path:
     """Create the output folder; say so when it already holds results that will be replaced.
 
     Checks that the folder can be written to (a probe file is created and removed),
@@ -375,10 +379,9 @@ def prepare_out_dir(out, *, announce=True, stream=None):
     if existing and announce:
         shown = ", ".join(existing[:6]) + (" ..." if len(existing) > 6 else "")
         msg = f"note: {out} already holds results ({shown}); files of the same name will be replaced"
-        if stream is not None:
-            print(msg, file=stream)
-        else:  # library code logs; with no logging configured, Python's last-resort handler shows it on stderr
-            logging.getLogger(__name__).warning(msg)
+        # library code logs: the command line shows it (`_progress.shown_on_stderr`); from Python, with no logging
+        # configured, Python's last-resort handler shows it on stderr
+        logging.getLogger(__name__).warning(msg)
     return out
 
 

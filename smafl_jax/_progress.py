@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 
-__all__ = ["LOGGER", "Steps", "heartbeat", "count_step", "shown_on_stderr", "format_seconds"]
+__all__ = ["LOGGER", "Steps", "heartbeat", "count_step", "say", "shown", "shown_on_stderr", "format_seconds"]
 
 LOGGER = logging.getLogger("smafl_jax.progress")
 
@@ -182,11 +182,63 @@ class _StderrHandler(logging.Handler):
             pass
 
 
+def _reaches_a_handler() -> bool:
+    """Whether progress records reach a handler (the command line's, the user's logging configuration, pytest's)."""
+    logger = LOGGER
+    while logger is not None:
+        if any(not isinstance(h, logging.NullHandler) for h in logger.handlers):
+            return True
+        if not logger.propagate:
+            return False
+        logger = logger.parent
+    return False
+
+
+@contextlib.contextmanager
+def shown(enabled: bool = True):
+    """The ``progress=True`` / ``verbose=True`` of a library function: its progress lines are shown while the block runs.
+
+    They go to the handlers logging is configured with (the command line's, or the user's); with none
+    configured, to stderr.  A level set on the progress logger (``smafl ... --quiet``, or by the user) is
+    respected; left unset, it is INFO while the block runs.  ``enabled=False`` changes nothing: the lines
+    are then only logged, as every progress line of the library is.
+    """
+    if not enabled:
+        yield
+        return
+    level, added = LOGGER.level, None
+    if level == logging.NOTSET:
+        LOGGER.setLevel(logging.INFO)
+    if not _reaches_a_handler():
+        added = _StderrHandler()
+        added.setFormatter(logging.Formatter("%(message)s"))
+        LOGGER.addHandler(added)
+    try:
+        yield
+    finally:
+        if added is not None:
+            LOGGER.removeHandler(added)
+        LOGGER.setLevel(level)
+
+
+def say(msg: str, enabled: bool = True) -> None:
+    """One progress line of a library function asked for progress (``enabled``): INFO on the progress logger,
+    shown as `shown` says; nothing when ``enabled`` is false."""
+    if enabled:
+        with shown():
+            LOGGER.info(msg)
+
+
 @contextlib.contextmanager
 def shown_on_stderr(enabled: bool = True):
     """Show progress lines on stderr while the block runs (``enabled=False``: hide them); the CLI wraps each
     command in it.  The logger's earlier state comes back afterwards (a command run inside another one,
-    such as the paper's posterior run by `smafl sample --no-progress`, does not silence its caller)."""
+    such as the paper's posterior run by `smafl sample --no-progress`, does not silence its caller).
+
+    The library's notes and warnings (WARNING on the ``smafl_jax`` loggers, e.g. "resuming a stored chain")
+    are shown too, as written, whatever ``enabled`` says: they are what Python's last-resort handler shows
+    when logging is not configured, shown here even when it is (pytest, a program calling `cli.main`).
+    """
     handler = _StderrHandler()
     handler.setFormatter(logging.Formatter("%(message)s"))
     before = (LOGGER.level, LOGGER.propagate, list(LOGGER.handlers))
@@ -196,9 +248,19 @@ def shown_on_stderr(enabled: bool = True):
     LOGGER.addHandler(handler)
     LOGGER.propagate = False  # shown once, by this handler, even when the root logger has handlers too
     LOGGER.setLevel(logging.INFO if enabled else logging.WARNING)
+    library = logging.getLogger("smafl_jax")
+    notes = _StderrHandler(logging.WARNING)
+    notes.setFormatter(logging.Formatter("%(message)s"))
+    outer_notes = [h for h in library.handlers if isinstance(h, _StderrHandler)]  # a command inside a command
+    for h in outer_notes:
+        library.removeHandler(h)
+    library.addHandler(notes)
     try:
         yield
     finally:
+        library.removeHandler(notes)
+        for h in outer_notes:
+            library.addHandler(h)
         LOGGER.removeHandler(handler)
         for h in before[2]:
             if h not in LOGGER.handlers:

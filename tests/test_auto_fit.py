@@ -16,9 +16,9 @@ import pytest
 from reference import eupi_loop, play_loop, random_reversals, thermal_loop
 
 import smafl_jax as sj
-from smafl_jax.control._control import plant_init, plant_step
-from smafl_jax.identify._choose import auto_structure, screen_start
-from smafl_jax.identify._fit import _bvls
+from smafl_jax.control import plant_init, plant_step
+from smafl_jax.identify import auto_structure, screen_start
+from smafl_jax.identify._fit import _bvls  # private: white-box test of the fit's bounded LS options
 
 sys.path.insert(0, str(Path(__file__).parent))
 import indep_plant
@@ -219,7 +219,7 @@ def test_fit_without_validation_split_warns_nothing():
     from pathlib import Path
 
     import smafl_jax as sj
-    from smafl_jax.report._report_fit import fit_record
+    from smafl_jax.report import fit_record
 
     rec = sj.load_record(Path(__file__).resolve().parents[1] / "datasets" / "steps.csv")
     with warnings.catch_warnings():
@@ -232,7 +232,7 @@ def test_an_undecided_orientation_is_refined_both_ways_and_the_whole_record_fit_
     """Output with no relation to the input: both signs profile alike, so both are refined and refitted."""
     import re
 
-    from smafl_jax.report._report_fit import fit_record
+    from smafl_jax.report import fit_record
 
     rng = np.random.default_rng(5)
     u = random_reversals(rng, 240) * 3.0

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from smafl_jax._errors import UserInputError
-from smafl_jax.identify._baselines import (
+from smafl_jax import UserInputError
+from smafl_jax.identify import (
     LAG_GRID,
     baselines_doc,
     compare_sentences,

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import pytest
 
 import smafl_jax  # noqa: F401  (x64)
-from smafl_jax import _compile_cache as cc
+from smafl_jax import _compile_cache as cc  # private: white-box test of the map guard; monkeypatch target
 
 linux = pytest.mark.skipif(cc.map_count() is None or cc.map_limit() is None, reason="needs /proc (Linux)")
 

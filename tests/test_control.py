@@ -15,18 +15,20 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax.control._control import (
+from smafl_jax.control import (
     PID,
     ClosedLoop,
     IICompensator,
+    batch_configs,
     closed_loop_metrics,
     plant_init,
     plant_step,
     simulate_closed_loop,
     sine_reference,
+    stack_models,
     step_reference,
+    sweep,
 )
-from smafl_jax.control._sweep import batch_configs, stack_models, sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -248,8 +250,7 @@ _SHARD_SCRIPT = textwrap.dedent(
     import json, sys
     import jax, jax.numpy as jnp, numpy as np
     import smafl_jax as sj
-    from smafl_jax.control._control import PID, ClosedLoop, IICompensator, step_reference
-    from smafl_jax.control._sweep import sweep
+    from smafl_jax.control import PID, ClosedLoop, IICompensator, step_reference, sweep
     assert len(jax.devices()) == 4, jax.devices()
     truth = sj.load_model(sys.argv[1])
     dt = 0.05

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from smafl_jax._errors import DataError, UserInputError
+from smafl_jax import DataError, UserInputError
 from smafl_jax.data import (
     Record,
     blocked_folds,
@@ -21,7 +21,7 @@ from smafl_jax.data import (
     time_block,
     whole,
 )
-from smafl_jax.data.split import _directions
+from smafl_jax.data.split import _directions  # private: white-box test of the split's direction labels
 
 # -- helpers -----------------------------------------------------------------------------
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax.identify import _decimate
-from smafl_jax.identify._decimate import decimate_mask, decimate_record, fit_stride
+import smafl_jax.identify._decimate as _decimate  # private: monkeypatch target (DECIMATE_ABOVE, TARGET_SAMPLES), fit_view
+from smafl_jax.identify import decimate_mask, decimate_record, fit_stride
 
 
 def _thermal_numpy(u, dt, k1, k2):
@@ -42,7 +42,7 @@ def test_stride_rule():
 
 
 def test_fit_record_uses_the_view_and_scores_at_full_rate(monkeypatch, tmp_path):
-    from smafl_jax.report._report_fit import fit_record
+    from smafl_jax.report import fit_record
 
     monkeypatch.setattr(_decimate, "DECIMATE_ABOVE", 900)
     monkeypatch.setattr(_decimate, "TARGET_SAMPLES", 400)

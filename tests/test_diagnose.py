@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax.diagnosis._diagnose import diagnose, synthetic_effect_record
-from smafl_jax.diagnosis._residuals import autocorrelation, cross_correlation, ljung_box
+from smafl_jax.diagnosis import autocorrelation, cross_correlation, diagnose, ljung_box, synthetic_effect_record
 from smafl_jax.effects import (
     EFFECT_NAMES,
     AsymmetricCooling,
@@ -107,9 +106,9 @@ def test_input_warp_reference(truth, drives):
 
 
 def test_branch_split_residues():
-    from smafl_jax._errors import UserInputError
-    from smafl_jax.data._data import Record
-    from smafl_jax.diagnosis._diagnose import make_split
+    from smafl_jax import UserInputError
+    from smafl_jax.data import Record
+    from smafl_jax.diagnosis import make_split
 
     br = np.repeat(np.arange(7), 5)
     rec = Record.from_arrays(np.arange(br.size) * 10.0, np.tile(np.linspace(0, 1, 5), 7), np.zeros(br.size), extra={"branch": br})
@@ -252,7 +251,7 @@ def test_strain_accumulation_reference_and_json(truth, drives, tmp_path):
 
 def test_strain_accumulation_c_is_profiled(truth, drives):
     """c enters linearly: the variable-projection fit recovers it exactly from noiseless data."""
-    from smafl_jax.diagnosis._diagnose import make_split, profile_gains
+    from smafl_jax.diagnosis import make_split, profile_gains
 
     rec, true = synthetic_effect_record(truth, drives, "strain_accumulation", seed=2, noise_sd=0.0)
     m0 = ExtendedModel(truth, (StrainAccumulation(c=jnp.asarray(0.0)),))
@@ -260,7 +259,7 @@ def test_strain_accumulation_c_is_profiled(truth, drives):
     assert float(m.get("strain_accumulation").c) == pytest.approx(float(true.effects[0].c), rel=1e-5)
     assert sse < 1e-12 * len(rec)
     # on an EUPI base the effect leaves no nonlinear parameter: fit_extended is one bounded least-squares solve
-    from smafl_jax.diagnosis._diagnose import fit_extended
+    from smafl_jax.diagnosis import fit_extended
 
     split = make_split(rec)
     fe, info = fit_extended(truth.hysteresis, ["strain_accumulation"], split)
@@ -283,14 +282,13 @@ def test_diagnosis_finds_strain_accumulation(truth, drives):
 def test_creep_fit_stays_bounded(truth, drives):
     """The creep parametrisation maps any value into |g| <= 1, tau in [2 dt, training length]; a fit on an output
     with a strong ramp (which an unbounded creep imitates with g -> -inf, tau >> record) stays inside."""
-    from smafl_jax.data._data import Record
-    from smafl_jax.diagnosis._diagnose import (
+    from smafl_jax.data import Record
+    from smafl_jax.diagnosis import fit_extended, make_split
+    from smafl_jax.diagnosis._diagnose import (  # private: white-box test of the varpro parameter layout
         _context,
         _get_phi,
         _phi_layout,
         _set_phi,
-        fit_extended,
-        make_split,
     )
 
     eupi = truth.hysteresis
@@ -319,7 +317,8 @@ def test_creep_fit_stays_bounded(truth, drives):
 
 def test_ambient_drift_probe_both_signs(truth, drives):
     """A falling ambient (rectified thermal state at rest) has its own signature: the probe must see either sign."""
-    from smafl_jax.diagnosis._diagnose import _context, _probe, make_split
+    from smafl_jax.diagnosis import make_split
+    from smafl_jax.diagnosis._diagnose import _context, _probe  # private: white-box test of an effect's score-test probes
 
     rec, _ = synthetic_effect_record(truth, drives, None, seed=3)
     probes = _probe("ambient_drift", _context(make_split(rec)))
@@ -328,7 +327,7 @@ def test_ambient_drift_probe_both_signs(truth, drives):
 
 
 def test_every_effect_roundtrips_json(truth, tmp_path):
-    from smafl_jax.diagnosis._diagnose import _effect_grid
+    from smafl_jax.diagnosis._diagnose import _effect_grid  # private: white-box test of an effect's start grid
 
     ctx = {"dt": 0.5, "y_range": 5.0, "y_mid": 3.0, "y_lo": 0.5, "load_ref": 2.0, "load_scale": 0.5, "duration": 1000.0}
     for name in EFFECT_NAMES:
@@ -434,8 +433,8 @@ def test_confusion_row(truth, drives, effect):
 
 def _preisach_forc_record(dt, with_branch, seed=0):
     """Rate-free FORC record from a known Preisach model (major loop + reversals), optionally without the branch column."""
-    from smafl_jax.data._data import Record
-    from smafl_jax.models._preisach import Preisach
+    from smafl_jax.data import Record
+    from smafl_jax.models import Preisach
 
     rng = np.random.default_rng(seed)
     m = Preisach.from_range(0.0, 3.5, n_levels=12)
@@ -454,7 +453,7 @@ def _preisach_forc_record(dt, with_branch, seed=0):
 
 
 def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
-    from smafl_jax.report._report import write_diagnosis
+    from smafl_jax.report import write_diagnosis
 
     rec = _preisach_forc_record(10.0, True)
     # legacy rule: the calibrated one refits the Preisach (inner CV) on every fold and null record (minutes)
@@ -485,7 +484,7 @@ def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
 
 
 def test_nonlocal_memory_not_offered_with_dynamics():
-    from smafl_jax._errors import UserInputError
+    from smafl_jax import UserInputError
 
     rec = _preisach_forc_record(0.5, False)  # dt 0.5 s, no branch column: not rate-free (cascade base)
     with pytest.raises(UserInputError, match=r"rate-free records only.*nothing left to test"):
@@ -497,7 +496,7 @@ def test_nonlocal_memory_not_offered_with_dynamics():
 
 
 def test_split_coverage_flags_an_untrained_branch():
-    from smafl_jax.diagnosis._diagnose import make_split, split_coverage
+    from smafl_jax.diagnosis import make_split, split_coverage
 
     t = np.arange(1000) * 0.1
     # heat, hold hot, cool: the last 30 % (the time block held out) holds the only cooling step
@@ -518,7 +517,7 @@ def test_split_coverage_flags_an_untrained_branch():
 
 def test_ar_fit_recovers_ar2_and_stays_stable(rng):
     """AR coefficients of a numpy-loop AR(2) are recovered; a random walk is shrunk to a stationary null model."""
-    from smafl_jax.diagnosis._diagnose import _ar_fit, _ar_simulate
+    from smafl_jax.diagnosis._diagnose import _ar_fit, _ar_simulate  # private: white-box test of the AR null-record helpers
 
     n, a1, a2 = 20000, 0.6, 0.3
     eta = rng.standard_normal(n)
@@ -538,8 +537,8 @@ def test_ar_fit_recovers_ar2_and_stays_stable(rng):
 
 
 def test_fold_splits_partition_the_record():
-    from smafl_jax.data._data import Record
-    from smafl_jax.diagnosis._diagnose import fold_splits
+    from smafl_jax.data import Record
+    from smafl_jax.diagnosis import fold_splits
 
     t = np.arange(300) * 0.5
     rec = Record.from_arrays(t, np.abs(np.sin(t / 7)), np.sin(t / 5), input_name="voltage_V", output_name="displacement_mm")
@@ -559,7 +558,7 @@ def test_fold_splits_partition_the_record():
 
 def _eupi_accumulation_record(truth, drives, c, seed, noise=0.003):
     """Temperature-input record (EUPI base: every fit is a least-squares solve) with strain accumulation c."""
-    from smafl_jax.data._data import Record
+    from smafl_jax.data import Record
 
     eupi = truth.hysteresis
     u = np.concatenate([np.asarray(drives[k][1], float) for k in ("main_loop", "minor_loop")])
@@ -569,7 +568,7 @@ def _eupi_accumulation_record(truth, drives, c, seed, noise=0.003):
 
 
 def test_calibrated_rule_accepts_a_real_effect_and_reports_folds_and_nulls(truth, drives, tmp_path):
-    from smafl_jax.report._report import write_diagnosis
+    from smafl_jax.report import write_diagnosis
 
     rec = _eupi_accumulation_record(truth, drives, 0.15, seed=21)
     diag = diagnose(rec, effects=["strain_accumulation"], refit=False, verbose=False, n_null=6, seed=3)
@@ -595,7 +594,7 @@ def test_diagnosis_object_is_typed_and_its_json_has_no_private_keys(truth, drive
     import typing
 
     from smafl_jax.diagnosis import Diagnosis, ResidualArrays, Split
-    from smafl_jax.report._report import write_diagnosis
+    from smafl_jax.report import write_diagnosis
 
     assert sj.Diagnosis is Diagnosis
     rec = _eupi_accumulation_record(truth, drives, 0.15, seed=23)
@@ -676,7 +675,7 @@ def test_cli_refuses_degenerate_records(tmp_path, capsys):
 def test_screened_base_fits_a_length_sensor_and_a_cold_start(truth, drives):
     """The diagnosis base is screened like `smafl fit` (orientation, thermal start): a record whose output falls
     on contraction and that starts cold gets a base at the noise level, which the fixed start cannot reach."""
-    from smafl_jax.diagnosis._diagnose import choose_base, fit_extended, make_split, score, screened_base
+    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, score, screened_base
 
     rec, _ = synthetic_effect_record(truth, drives, None, seed=5)
     cold = eqx.tree_at(lambda m: m.thermal, truth, sj.JouleThermal(k1=truth.thermal.k1, k2=truth.thermal.k2, init="ambient"))
@@ -701,7 +700,7 @@ def test_refined_base_fits_the_operator_memory_of_an_independent_clean_record():
     it and leaves structure that effects would then "explain"."""
     import indep_plant as ip
 
-    from smafl_jax.diagnosis._diagnose import choose_base, fit_extended, make_split, refined_base, score, screened_base
+    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, refined_base, score, screened_base
 
     # the clean record of experiments/indep_effects.py seed 0 (experiments/oracle_attribution.py measured it)
     r = ip.make_record(0, drive="multisine", rate_hz=2.1134350806886517, minutes=23.815888073993964, start="warm", noise="fixed")

@@ -12,16 +12,19 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax._errors import UserInputError
-from smafl_jax.control._control import PID, ClosedLoop, IICompensator, step_reference
-from smafl_jax.control._distributed import (
+from smafl_jax import UserInputError
+from smafl_jax.control import (
     ENV_ADDRESS,
     ENV_NUM_PROCESSES,
     ENV_PROCESS_ID,
+    PID,
+    ClosedLoop,
+    IICompensator,
     distributed_settings,
     initialize_from_env,
+    step_reference,
+    sweep,
 )
-from smafl_jax.control._sweep import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 DT = 0.05
@@ -41,12 +44,11 @@ _WORKER = textwrap.dedent(
     import sys
     import numpy as np
     import smafl_jax as sj
-    from smafl_jax.control._distributed import initialize_from_env
+    from smafl_jax.control import initialize_from_env
     assert initialize_from_env(), "no distributed settings in the environment"
     import jax
     import jax.numpy as jnp
-    from smafl_jax.control._control import PID, ClosedLoop, IICompensator, step_reference
-    from smafl_jax.control._sweep import sweep
+    from smafl_jax.control import PID, ClosedLoop, IICompensator, step_reference, sweep
     assert jax.process_count() == 2 and jax.local_device_count() == 2 and jax.device_count() == 4, jax.devices()
     truth = sj.load_model(sys.argv[1])
     dt = {dt}

@@ -103,7 +103,11 @@ def test_grid_probes_and_synthetic_run_finite(cls, cascade, drive, rng):
 
 @pytest.mark.parametrize("cls", ALL_EFFECTS, ids=_ids)
 def test_nonlinear_parameters_round_trip(cls, cascade):
-    from smafl_jax.diagnosis._diagnose import _get_phi, _phi_layout, _set_phi
+    from smafl_jax.diagnosis._diagnose import (  # private: white-box test of the varpro parameter layout
+        _get_phi,
+        _phi_layout,
+        _set_phi,
+    )
 
     pars = cls.nonlinear(CTX)
     fields = [p.field for p in pars]
@@ -195,14 +199,7 @@ class InputPower(AbstractWarpEffect):
 
 
 def test_a_new_effect_needs_no_library_change(cascade, drive, monkeypatch):
-    from smafl_jax.diagnosis._diagnose import (
-        applicable_effects,
-        effect_evidence,
-        fit_extended,
-        make_split,
-        score,
-        synthetic_effect_record,
-    )
+    from smafl_jax.diagnosis import applicable_effects, effect_evidence, fit_extended, make_split, score, synthetic_effect_record
 
     u, load = drive
     # ExtendedModel runs it at its stage without registration

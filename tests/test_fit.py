@@ -10,7 +10,6 @@ import pytest
 from reference import eupi_loop, random_reversals
 
 import smafl_jax as sj
-from smafl_jax import _io
 from smafl_jax.cli import main as cli_main
 
 
@@ -118,7 +117,7 @@ def test_deterministic(datasets_dir):
     assert a.loss == b.loss
 
 
-@_io.register_model
+@sj.register_model
 class _NanAbove(eqx.Module):
     """Toy model y = a u that is NaN for a > 2 (to provoke a diverging refinement)."""
 
@@ -137,7 +136,7 @@ def test_nan_region_never_returned():
 
 def test_divergence_is_reported_and_start_kept(monkeypatch):
     """A refinement that returns NaN is discarded with a message saying so and why."""
-    from smafl_jax.identify import _fit
+    from smafl_jax.identify import _fit  # private: monkeypatch target (_refine)
 
     def nan_refine(model, spec, args, solver, max_steps, rtol, atol):
         return eqx.tree_at(lambda m: m.a, model, jnp.asarray(np.nan)), float("nan"), 7, False

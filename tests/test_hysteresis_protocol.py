@@ -17,20 +17,11 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax.bayes._bayes import Posterior
+from smafl_jax.bayes import Posterior
 from smafl_jax.cli import main
-from smafl_jax.control._control import (
-    PID,
-    ClosedLoop,
-    IICompensator,
-    plant_init,
-    plant_step,
-    simulate_closed_loop,
-    sine_reference,
-)
+from smafl_jax.control import PID, ClosedLoop, IICompensator, plant_init, plant_step, simulate_closed_loop, sine_reference
 from smafl_jax.effects import EFFECTS, ExtendedModel
-from smafl_jax.models._hysteresis import AbstractHysteresis, hysteresis_models, hysteresis_of
-from smafl_jax.models._preisach import Preisach, relay_loop
+from smafl_jax.models import AbstractHysteresis, Preisach, hysteresis_models, hysteresis_of, relay_loop
 
 MODELS = hysteresis_models()
 IDS = [cls.__name__ for cls in MODELS]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from reference import play_loop, random_reversals
 
-from smafl_jax.models._operators import play_weighted
+from smafl_jax.models import play_weighted
 
 
 @pytest.mark.parametrize("y0", [None, "random"])

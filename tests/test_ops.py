@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from smafl_jax import ops
-from smafl_jax.ops import _affine as affine_mod
-from smafl_jax.ops import _play as play_mod
-from smafl_jax.ops import _relay as relay_mod
+from smafl_jax.ops import _affine as affine_mod  # private: trace counts of the module's jitted kernel
+from smafl_jax.ops import _play as play_mod  # private: trace counts of the module's jitted kernel
+from smafl_jax.ops import _relay as relay_mod  # private: trace counts of the module's jitted kernel
 
 FORMS = ("scan", "assoc", "chunked", "segmented")
 # small blocks / odd segment counts so that padding, several blocks and uneven pieces are all exercised

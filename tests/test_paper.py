@@ -81,7 +81,7 @@ def test_numbers_are_finite_and_consistent_with_output_files(paper_run):
 
 
 def test_control_ranking_needs_a_margin_in_both_windows():
-    from smafl_jax.paper._paper import TIE_MARGIN, control_ranking
+    from smafl_jax.paper import TIE_MARGIN, control_ranking
 
     def rows(pid, comp):
         return [

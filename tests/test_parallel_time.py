@@ -16,7 +16,7 @@ import pytest
 from reference import play_loop, random_reversals, thermal_loop
 
 import smafl_jax as sj
-from smafl_jax.models._operators import MODEL_METHODS, choose_model_method, model_with_method
+from smafl_jax.models import MODEL_METHODS, choose_model_method, model_with_method
 
 PARALLEL = ("assoc", "chunked", "segmented")
 ALL = ("auto", "scan", *PARALLEL)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax.models._preisach import Preisach, cv_fit_preisach, fit_preisach, relay_loop, tikhonov_matrix
+from smafl_jax.models import Preisach, cv_fit_preisach, fit_preisach, relay_loop, tikhonov_matrix
 
 
 def _random_model(rng, n=7, linear=False, init="descended", ramp=True):
@@ -176,7 +176,7 @@ def test_inner_cv_picks_the_true_grid(rng):
 
 def test_everett_reproduces_measured_forcs_and_recovers_the_grid():
     """FORCs with a reversal at every cell edge determine a Preisach grid exactly (Mayergoyz): Everett weights = the truth."""
-    from smafl_jax.models._preisach import everett_weights, fit_everett
+    from smafl_jax.models import everett_weights, fit_everett
 
     truth = _smooth_truth(n=12)
     h = 3.5 / 12
@@ -197,7 +197,7 @@ def test_everett_reproduces_measured_forcs_and_recovers_the_grid():
 
 
 def test_everett_rejects_non_forc_segments():
-    from smafl_jax.models._preisach import everett_weights, forc_shaped
+    from smafl_jax.models import everett_weights, forc_shaped
 
     u = np.concatenate([np.linspace(0, 3, 20), np.linspace(3, 1, 10), np.linspace(1, 2, 5)])  # a minor loop, not a FORC
     segs = [(u, u), (np.linspace(0, 3.5, 10), np.linspace(0, 1, 10))]
@@ -234,7 +234,7 @@ def test_penalised_solver_matches_bounded_least_squares(rng):
     """NNLS with split free columns = scipy's BVLS on the same penalised problem (KKT: same unique minimiser)."""
     from scipy.optimize import lsq_linear
 
-    from smafl_jax.models._preisach import solve_penalised
+    from smafl_jax.models import solve_penalised
 
     A = rng.standard_normal((80, 12))
     y = A @ np.r_[rng.uniform(-1, 1, 9), -2.0, 0.5, 3.0] + 0.1 * rng.standard_normal(80)

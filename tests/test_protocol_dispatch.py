@@ -21,31 +21,32 @@ import numpy as np
 import pytest
 
 import smafl_jax
-from smafl_jax._choices import HYSTERESIS
-from smafl_jax._choices import MODELS as CHOICES
-from smafl_jax._errors import UserInputError
-from smafl_jax.bayes._bayes import Posterior, Prior, default_priors, derived_quantities
-from smafl_jax.control._control import plant_init
-from smafl_jax.diagnosis._diagnose import choose_base
+from smafl_jax import UserInputError
+from smafl_jax.bayes import Posterior, Prior, default_priors, derived_quantities
+from smafl_jax.control import plant_init
+from smafl_jax.diagnosis import choose_base
 from smafl_jax.effects import EFFECTS, ExtendedModel
-from smafl_jax.identify._fit import _has_k1, _linear_part, default_trainable, init_linear
-from smafl_jax.identify._multi_record import _joint_fit
-from smafl_jax.models._cascade import Cascade
-from smafl_jax.models._constraints import parameter, positive
-from smafl_jax.models._eupi import EUPI
-from smafl_jax.models._hysteresis import (
+from smafl_jax.identify import default_trainable, init_linear
+from smafl_jax.identify._fit import _has_k1, _linear_part  # private: white-box test of the fit's protocol dispatch
+from smafl_jax.identify._multi_record import _joint_fit  # private: fit_record's model choice, no outputs written
+from smafl_jax.models import (
+    EUPI,
     AbstractHysteresis,
+    Cascade,
+    JouleLag,
+    JouleThermal,
+    Preisach,
     hysteresis_class,
     hysteresis_models,
     hysteresis_of,
     linear_field_columns,
+    model_with_method,
+    parameter,
+    positive,
     thermal_of,
 )
-from smafl_jax.models._joule_lag import JouleLag
-from smafl_jax.models._operators import model_with_method
-from smafl_jax.models._preisach import Preisach
-from smafl_jax.models._thermal import JouleThermal
-from smafl_jax.report._report_fit import K2_NOTE, fit_record, write_fit_outputs
+from smafl_jax.report import HYSTERESIS, K2_NOTE, fit_record, write_fit_outputs
+from smafl_jax.report import MODELS as CHOICES
 
 MODELS = hysteresis_models()
 IDS = [cls.__name__ for cls in MODELS]
@@ -484,7 +485,7 @@ def test_diagnosis_base_is_the_registered_eupi_by_the_documented_rule(rng):
 def test_column_scales_of_a_nonlinear_preisach_give_every_relay_its_share():
     """A Preisach without the linear term has a ``gain`` scale but no ``gain`` column: the scale must not land on a
     relay column (it did: the first relay got scale 1 instead of 1 / sqrt(n), a 10-20x wider prior in `smafl sample`)."""
-    from smafl_jax.models._hysteresis import column_weight_scales
+    from smafl_jax.models import column_weight_scales
 
     p = Preisach.from_range(0.0, 3.0, n_levels=5, linear=False)
     assert "gain" not in p.linear_fields()

@@ -8,7 +8,7 @@ import pytest
 
 import smafl_jax as sj
 from smafl_jax.cli import main
-from smafl_jax.models._range import range_check
+from smafl_jax.models import range_check
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
 
@@ -32,7 +32,7 @@ def test_range_check_reports_each_stretch_with_time_and_size():
 
 
 def test_fit_stores_effective_range_of_the_saved_model(tmp_path):
-    from smafl_jax.report._report_fit import fit_record
+    from smafl_jax.report import fit_record
 
     rec = sj.load_record(DATASETS / "main_loop.csv")
     model, doc, (train, _, _) = fit_record(rec, model="cascade", max_steps=0, refit=False)

@@ -58,7 +58,7 @@ def test_recalibrate_recovers_gain_and_offsets_and_scores_after_the_segment(trut
     assert info["scored_from_sample"] == 140 and info["scored_from_s"] == pytest.approx(70.0)
     assert info["segment_rmse_after"] < 1e-8 < 0.01 < info["segment_rmse_before"]
 
-    from smafl_jax.identify._recalibrate import after_segment_metrics
+    from smafl_jax.identify import after_segment_metrics
 
     s = after_segment_metrics(y, sj.simulate(truth, u, DT), sj.simulate(fitted, u, DT), info["scored_from_sample"])
     assert s["raw"]["n_samples"] == s["recalibrated"]["n_samples"] == len(u) - 140
@@ -123,7 +123,7 @@ def test_bad_segments_and_names_raise_user_input_errors(truth, segment, fit, mat
 
 
 def test_segment_times_count_from_the_record_start_time(truth):
-    from smafl_jax.identify._recalibrate import segment_indices
+    from smafl_jax.identify import segment_indices
 
     assert segment_indices((100.0, 110.0), 200, DT, t0=100.0) == (0, 20)
     assert segment_indices((None, 3.0), 200, DT, t0=0.0) == (0, 6)

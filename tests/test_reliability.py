@@ -232,7 +232,7 @@ def test_oversized_csv_field_is_a_data_error(tmp_path):
 def test_sample_refuses_a_model_it_cannot_condition():
     # a diagnose ExtendedModel is sampled now (its effect parameters with the rest); an object without
     # simulate(u, dt) is refused with a message naming it
-    from smafl_jax.bayes._bayes import check_model_supported
+    from smafl_jax.bayes import check_model_supported
 
     check_model_supported(sj.ExtendedModel(sj.load_model(TRUTH), ()))
     with pytest.raises(sj.UserInputError, match="no simulate"):
@@ -243,8 +243,7 @@ def test_sample_refuses_a_model_it_cannot_condition():
 
 
 def test_chunked_sweep_equals_one_call_and_reports_progress():
-    from smafl_jax.control._control import PID, ClosedLoop, sine_reference
-    from smafl_jax.control._sweep import sweep
+    from smafl_jax.control import PID, ClosedLoop, sine_reference, sweep
 
     model = sj.load_model(TRUTH)
     import jax.numpy as jnp
@@ -286,7 +285,7 @@ def _joule_posterior():
 def test_acceptance_fraction_is_counted_from_the_chain_and_survives_a_resume(tmp_path):
     import h5py
 
-    from smafl_jax.bayes._bayes import _hdf_backend
+    from smafl_jax.bayes._bayes import _hdf_backend  # private: white-box test of the HDF5 backend
 
     post = _joule_posterior()
     ref = sj.run_sampler(post, 40, n_walkers=8, path=tmp_path / "ref.h5", seed=5, progress=False)
@@ -360,7 +359,7 @@ def test_heartbeat_reports_elapsed_time_while_a_phase_runs():
     import io
     import time
 
-    from smafl_jax._progress import heartbeat
+    from smafl_jax._progress import heartbeat  # private: white-box test; top-level, no public path
 
     buf = io.StringIO()
     with heartbeat("refinement", every_s=0.05, stream=buf):
@@ -426,7 +425,7 @@ def test_ctrl_c_during_fit_and_sample_exits_130_and_leaves_nothing_half_written(
 _SWALLOWING = """
 import os, signal, sys, time
 from pathlib import Path
-from smafl_jax import cli, _io
+from smafl_jax import cli, _io  # private: marks an atomic write in flight (_IN_FLIGHT)
 from smafl_jax.cli import control
 
 def stuck(args):
@@ -522,7 +521,7 @@ def test_unreadable_model_files_and_missing_bundled_records_exit_2(tmp_path, cap
 def test_steps_report_progress_with_an_estimate():
     import io
 
-    from smafl_jax._progress import Steps, format_seconds
+    from smafl_jax._progress import Steps, format_seconds  # private: white-box test; top-level, no public path
 
     buf = io.StringIO()
     st = Steps("null records", 4, unit="records", every_s=0.0, stream=buf)
@@ -546,7 +545,7 @@ def test_heartbeat_counts_the_steps_of_a_compiled_loop():
 
     import jax
 
-    from smafl_jax._progress import count_step, heartbeat
+    from smafl_jax._progress import count_step, heartbeat  # private: white-box test; top-level, no public path
 
     def body(i, x):
         jax.debug.callback(count_step)
@@ -565,7 +564,7 @@ def test_heartbeat_counts_the_steps_of_a_compiled_loop():
 
 
 def test_cli_shows_library_progress_and_quiet_hides_it(tmp_path, capsys, monkeypatch):
-    from smafl_jax import _progress
+    from smafl_jax import _progress  # private: white-box test; top-level, no public path
     from smafl_jax.cli import diagnose
 
     def fake(args):
@@ -589,8 +588,8 @@ def test_long_phases_report_progress(tmp_path, monkeypatch, caplog):
     """Preisach cross-validation and the LM refinement of a fit report with an estimate (tiny records)."""
     import logging
 
-    from smafl_jax import _progress
-    from smafl_jax.models._preisach import cv_fit_preisach
+    from smafl_jax import _progress  # private: monkeypatch target (EVERY_S)
+    from smafl_jax.models import cv_fit_preisach
 
     monkeypatch.setattr(_progress, "EVERY_S", 0.0)
     rng = np.random.default_rng(0)
@@ -614,7 +613,7 @@ def test_long_phases_report_progress(tmp_path, monkeypatch, caplog):
 def test_padded_calls_equal_unpadded_ones():
     import jax.numpy as jnp
 
-    from smafl_jax.models._padding import MIN_BUCKET, bucket_length, padded_call
+    from smafl_jax.models import MIN_BUCKET, bucket_length, padded_call
 
     for n in (1, 37, MIN_BUCKET, MIN_BUCKET + 1, 1000, 4097, 100_000):
         b = bucket_length(n)
@@ -663,10 +662,10 @@ def _labels_with_units(fig):
 def test_report_figures_have_units_on_every_axis(tmp_path):
     import matplotlib.pyplot as plt
 
-    from smafl_jax.diagnosis._diagnose import make_split
-    from smafl_jax.report import _plots_bayes as pb
-    from smafl_jax.report import _report
-    from smafl_jax.report._reportdoc import axis_label
+    import smafl_jax.report._report as _report  # private: patches atomic_savefig where _plot looks it up; calls _plot
+    from smafl_jax import report as pb
+    from smafl_jax.diagnosis import make_split
+    from smafl_jax.report import axis_label
 
     assert axis_label("displacement_mm") == "displacement (mm)"
     assert axis_label("temperature_front_C") == "temperature front (°C)"

@@ -150,8 +150,9 @@ def test_one_trace_for_new_parameter_values(steps):
 def test_fit_recovers_a_sensor_lag(eupi):
     """Synthetic record with known truth: the EUPI sees the material temperature, the input column is a 3 s sensor
     lag of it; the diagnosis' fit of ``sensor_lead`` finds the lead time and beats the base model."""
-    from smafl_jax.data._data import Record
-    from smafl_jax.diagnosis._diagnose import Split, _segment, fit_extended
+    from smafl_jax.data import Record
+    from smafl_jax.diagnosis import Split, fit_extended
+    from smafl_jax.diagnosis._diagnose import _segment  # private: builds a diagnosis Segment (no public constructor)
 
     dt, tau_s = 0.1, 3.0
     r = np.random.default_rng(11)

@@ -47,14 +47,14 @@ def test_bad_lag_and_closed_loop_refusal():
     with pytest.raises(ValueError, match="lag must be one of"):
         sj.JouleThermal(lag=2)
     cas = sj.Cascade(thermal=sj.JouleThermal(lag=1), hysteresis=sj.EUPI.from_range(0.0, 6.0))
-    from smafl_jax.control._control import plant_init
+    from smafl_jax.control import plant_init
 
     with pytest.raises(ValueError, match="next sample"):
         plant_init(cas, 1.0)
 
 
 def test_lag_survives_the_model_file():
-    from smafl_jax._io import model_from_dict, model_to_dict
+    from smafl_jax import model_from_dict, model_to_dict
 
     cas = sj.Cascade(thermal=sj.JouleThermal(lag=1), hysteresis=sj.EUPI.from_range(0.0, 6.0))
     assert model_from_dict(model_to_dict(cas)).thermal.lag == 1

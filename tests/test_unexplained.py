@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax._errors import UserInputError
-from smafl_jax.diagnosis._unexplained import describe, expand_signals, generic_correction, lowpass, structure_verdict
+from smafl_jax import UserInputError
+from smafl_jax.diagnosis import describe, expand_signals, generic_correction, lowpass, structure_verdict
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -116,9 +116,9 @@ def test_diagnose_reports_unexplained_without_changing_the_selection(tmp_path):
     """An extra column no catalogue effect uses moves the output: the key, the figure, the same selection."""
     import importlib.util
 
-    from smafl_jax.diagnosis._diagnose import diagnose
+    from smafl_jax.diagnosis import diagnose
     from smafl_jax.effects import ExtendedModel
-    from smafl_jax.report._report import write_diagnosis
+    from smafl_jax.report import write_diagnosis
 
     spec = importlib.util.spec_from_file_location("smafl_datasets_generate", ROOT / "datasets" / "generate.py")
     gen = importlib.util.module_from_spec(spec)

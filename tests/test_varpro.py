@@ -103,7 +103,7 @@ def test_fit_profile_loss_is_the_returned_models_loss(datasets_dir):
 
 
 def test_diagnose_profile_loss_is_the_returned_models_sse(datasets_dir):
-    from smafl_jax.diagnosis._diagnose import make_split, profile_gains, simulate_segment
+    from smafl_jax.diagnosis import make_split, profile_gains, simulate_segment
     from smafl_jax.effects import ExtendedModel, SensorLag
 
     truth = sj.load_model(datasets_dir / "truth.json")
@@ -183,7 +183,13 @@ def test_refine_thermal_start_equals_a_plain_nelder_mead(datasets_dir):
 def test_fit_extended_equals_a_plain_grid_and_nelder_mead(datasets_dir):
     """Effect grid x k1 grid scored by `profile_gains`, the first best start, Nelder-Mead with the diagnosis' simplex,
     caps, tolerances and cache, then the gains at the final point."""
-    from smafl_jax.diagnosis._diagnose import _context, _get_phi, _phi_layout, _set_phi, fit_extended, make_split, profile_gains
+    from smafl_jax.diagnosis import fit_extended, make_split, profile_gains
+    from smafl_jax.diagnosis._diagnose import (  # private: white-box test of the varpro parameter layout
+        _context,
+        _get_phi,
+        _phi_layout,
+        _set_phi,
+    )
     from smafl_jax.effects import ExtendedModel, SensorLag
 
     rec = sj.load_record(datasets_dir / "steps.csv")

@@ -7,6 +7,7 @@ from ._bayes import (
     SampleRun,
     check_model_supported,
     default_priors,
+    derived_quantities,
     diagnostics,
     linear_modes,
     load_priors,
@@ -30,4 +31,6 @@ __all__ = [
     "load_run",
     "diagnostics",
     "summarize",
+    # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).
+    "derived_quantities",
 ]

@@ -29,19 +29,23 @@ Preisach levels) are never sampled; its weights are its `linear_fields`.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
 import shutil
 import sys
 import time
 import warnings
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
+from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 from .._errors import UserInputError
@@ -66,6 +70,8 @@ __all__ = [
     "diagnostics",
     "summarize",
 ]
+
+log = logging.getLogger(__name__)
 
 NOISE_MODELS = ("gaussian", "student-t")
 LINEAR_MODES = ("sample", "marginalise", "profile")
@@ -160,7 +166,7 @@ def _jsonable(x):
     return float(x) if np.ndim(x) == 0 else np.asarray(x).tolist()
 
 
-def load_priors(path):
+def load_priors(path: str | os.PathLike) -> dict[str, Prior]:
     """``{parameter name: Prior}`` from a JSON file ``{"thermal.k1": {"dist": ..., ...}, ...}``."""
     from .._io import read_json_file
 
@@ -190,7 +196,7 @@ def _data_scale(data):
     return yr, float(np.max(np.abs(us))) or 1.0
 
 
-def default_priors(names, data, model=None):
+def default_priors(names: Sequence[str], data: Any, model: Any = None) -> dict[str, Prior]:
     """Weakly informative priors for the parameter leaves ``names``, scaled by the data.
 
     The hysteresis part of ``model`` states its own (`hysteresis_priors`): its linear weights that are >= 0
@@ -422,11 +428,6 @@ class Posterior:
         if linear != "sample" and not jax.tree_util.tree_leaves(raw_train):
             self._d = dataclasses.replace(self._d, design=_fixed_design(self._d, model))
 
-    @property
-    def n_traces(self):
-        """How many times the vectorised log-density has been traced (process-wide; for tests)."""
-        return _TRACES[0]
-
     def unpack(self, theta):
         """``(physical model, sigma)`` at the unconstrained vector ``theta`` (gains as in the template when not sampled)."""
         return self._d.unpack(jnp.asarray(theta))
@@ -603,9 +604,6 @@ class _Density(eqx.Module):
         return f, f + sigma * e
 
 
-_TRACES = [0]
-
-
 @eqx.filter_jit
 def _design_jit(density, model):
     return density._design(model)
@@ -624,10 +622,18 @@ def _fixed_design(density, model):
     return tuple(jnp.asarray(x) for x in (A, y, c, U, np.maximum(lam, 0.0), g))
 
 
+def _vmapped_log_prob(density, thetas):
+    return jax.vmap(density.log_prob)(thetas)
+
+
+# The hot function of sampling (emcee calls it once per step): one trace per density structure and shapes;
+# tests check with `eqx.debug.get_num_traces` that new values never retrace.
+_log_prob_traced = eqx.debug.assert_max_traces(_vmapped_log_prob, max_traces=None)
+
+
 @jax.jit
 def _batch_log_prob(density, thetas):
-    _TRACES[0] += 1  # runs at trace time only
-    return jax.vmap(density.log_prob)(thetas)
+    return _log_prob_traced(density, thetas)
 
 
 @jax.jit
@@ -701,19 +707,19 @@ def _checkpoint(path):
 
 
 def run_sampler(
-    posterior,
-    n_steps,
+    posterior: Posterior,
+    n_steps: int,
     *,
-    n_walkers=None,
-    path=None,
-    name="mcmc",
-    seed=0,
-    resume=True,
-    progress=True,
-    checkpoint_s=10.0,
-    initial=None,
-    on_step=None,
-):
+    n_walkers: int | None = None,
+    path: str | os.PathLike | None = None,
+    name: str = "mcmc",
+    seed: int = 0,
+    resume: bool = True,
+    progress: bool = True,
+    checkpoint_s: float = 10.0,
+    initial: ArrayLike | None = None,
+    on_step: Callable[..., Any] | None = None,
+) -> SampleRun:
     """Run (or resume) `emcee.EnsembleSampler` with the vectorised log-posterior.
 
     With ``path`` the chain goes to an emcee HDF5 backend.  If the file already
@@ -745,9 +751,8 @@ def run_sampler(
                     raise UserInputError(
                         f"{path}: the chain file is unreadable and has no usable checkpoint; rerun with a fresh output (restart)"
                     )
-                print(
-                    f"note: {path} was left unreadable by an interruption; continuing from its checkpoint at step {it_bak}",
-                    file=sys.stderr,
+                log.warning(
+                    f"note: {path} was left unreadable by an interruption; continuing from its checkpoint at step {it_bak}"
                 )
                 shutil.copyfile(bak, path)
                 it = it_bak
@@ -767,7 +772,7 @@ def run_sampler(
     start = None
     if done:
         state = None  # emcee restores the last position, log-probabilities and random state
-        print(f"resuming {path} at step {done} of {n_steps}", file=sys.stderr)
+        log.warning(f"resuming {path} at step {done} of {n_steps}")  # a note the user must see: the chain is extended
     else:
         sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
         state = posterior.initial_ball(n_walkers, rng) if initial is None else np.asarray(initial)
@@ -842,7 +847,7 @@ def _collect(backend, names, path, resumed_from, start=None):
     )
 
 
-def load_run(path, names, name="mcmc"):
+def load_run(path: str | os.PathLike, names: Sequence[str], name: str = "mcmc") -> SampleRun:
     """`SampleRun` from an emcee HDF5 file written by `run_sampler`."""
     return _collect(_hdf_backend(path, name, read_only=True), names, str(path), 0)
 
@@ -850,7 +855,7 @@ def load_run(path, names, name="mcmc"):
 # -- diagnostics and summary --------------------------------------------------
 
 
-def diagnostics(run, burn=None, *, warn=True):
+def diagnostics(run: SampleRun, burn: int | None = None, *, warn: bool = True) -> dict[str, Any]:
     """emcee autocorrelation times, acceptance fraction and effective sample sizes.
 
     ``burn=None`` discards ``max(n_steps // 5, 3 tau_max)`` (at most half the chain).
@@ -940,7 +945,7 @@ def _model_leaf(model, name):
     return None
 
 
-def summarize(posterior, run, burn=None, *, warn=True):
+def summarize(posterior: Posterior, run: SampleRun, burn: int | None = None, *, warn: bool = True) -> dict[str, Any]:
     """``summary.json`` content: per-parameter posterior statistics (physical units) and run diagnostics."""
     diag = diagnostics(run, burn, warn=warn)
     flat = run.chain[diag["burn"] :].reshape(-1, posterior.ndim)

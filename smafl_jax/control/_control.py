@@ -319,7 +319,7 @@ def _check_dt(dt):
     return dt
 
 
-def simulate_closed_loop(loop: ClosedLoop, dt):
+def simulate_closed_loop(loop: ClosedLoop, dt: float) -> tuple[dict[str, Any], dict[str, Any]]:
     """Run one configuration; returns ``(metrics, trajectories)`` (dicts of arrays).
 
     Trajectories: ``time_s, reference, y, y_meas, error, u, u1 (PID), u2 (I-I), integral, saturated``.
@@ -331,7 +331,7 @@ def simulate_closed_loop(loop: ClosedLoop, dt):
     return _simulate(loop, _check_dt(dt))
 
 
-def closed_loop_metrics(loop: ClosedLoop, dt):
+def closed_loop_metrics(loop: ClosedLoop, dt: float) -> dict[str, Any]:
     """Metrics only (accumulated inside the scan, no trajectories stored): what sweeps use."""
     return _metrics(loop, _check_dt(dt))
 
@@ -339,13 +339,20 @@ def closed_loop_metrics(loop: ClosedLoop, dt):
 # -- references -----------------------------------------------------------------------
 
 
-def sine_reference(duration, dt, amplitude=1.0, omega=3 * np.pi / 10, phase=np.pi / 2, offset=1.5):
+def sine_reference(
+    duration: float,
+    dt: float,
+    amplitude: float = 1.0,
+    omega: float = 3 * np.pi / 10,
+    phase: float = np.pi / 2,
+    offset: float = 1.5,
+) -> np.ndarray:
     """Paper's sine ``amplitude sin(omega t + phase) + offset`` (mm), sampled at ``t = k dt``."""
     t = np.arange(int(round(duration / dt))) * dt
     return amplitude * np.sin(omega * t + phase) + offset
 
 
-def step_reference(duration, dt, height=2.5, t_step=0.0, base=0.0):
+def step_reference(duration: float, dt: float, height: float = 2.5, t_step: float = 0.0, base: float = 0.0) -> np.ndarray:
     """Step of ``height`` mm at ``t_step`` s (paper: 2.5 mm from t = 0)."""
     t = np.arange(int(round(duration / dt))) * dt
     return np.where(t >= t_step, base + height, base)

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import functools
 import time
-from typing import NamedTuple
+from collections.abc import Iterable
+from typing import NamedTuple, TypeVar
 
 import equinox as eqx
 import jax
@@ -44,7 +45,10 @@ class SweepResult(NamedTuple):
     values: dict  # path -> the values given (numpy, or the stacked model)
 
 
-def stack_models(models):
+_Tree = TypeVar("_Tree")
+
+
+def stack_models(models: Iterable[_Tree]) -> _Tree:
     """Stack models of identical structure into one PyTree with a leading batch axis on every array leaf."""
     models = list(models)
     if not models:
@@ -133,7 +137,16 @@ def _mesh():
 CHUNK_STEPS = 4_000_000
 
 
-def sweep(base: ClosedLoop, dt, grid: dict, *, mode="product", shard=True, chunk=None, progress=None):
+def sweep(
+    base: ClosedLoop,
+    dt: float,
+    grid: dict,
+    *,
+    mode: str = "product",
+    shard: bool = True,
+    chunk: int | None = None,
+    progress: bool | None = None,
+) -> SweepResult:
     """Metrics (e_mean_mm, rmse_mm, max_abs_error_mm, saturated_fraction, u_min_V, u_max_V) for every grid configuration.
 
     The configurations run in chunks of ``chunk`` (default: about `CHUNK_STEPS`

@@ -16,6 +16,8 @@ done.
 
 from __future__ import annotations
 
+import os
+
 from .load import INPUT_CANDIDATES, OUTPUT_CANDIDATES, file_sha256
 from .load import load_record as _load_record
 from .record import DEFAULT_DT_RTOL, Record
@@ -24,7 +26,7 @@ __all__ = ["Record", "load_record", "file_sha256", "INPUT_CANDIDATES", "OUTPUT_C
 
 
 def load_record(
-    path,
+    path: str | os.PathLike,
     input: str | None = None,
     output: str | None = None,
     *,

@@ -42,6 +42,7 @@ import glob as _glob
 import hashlib
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,7 @@ _DELIM_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 LONG_GAP_STEPS = 10
 
 
-def file_sha256(path) -> str:
+def file_sha256(path: str | os.PathLike) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
@@ -172,7 +173,7 @@ def _lines_text(lines) -> str:
 
 
 def load_record(
-    path,
+    path: str | os.PathLike,
     input: str | None = None,
     output: str | None = None,
     *,

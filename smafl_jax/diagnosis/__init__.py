@@ -4,7 +4,27 @@ catalogue effects and the generic, labelled correction when the residual stays u
 (Named ``diagnosis`` because ``smafl_jax.diagnose`` is the public function.)
 """
 
-from ._diagnose import Segment, Split, choose_base, diagnose, effect_evidence, fit_extended, make_split
+from ._diagnose import (
+    Segment,
+    Split,
+    applicable_effects,
+    choose_base,
+    diagnose,
+    effect_evidence,
+    fit_extended,
+    fold_splits,
+    make_split,
+    n_parameters,
+    profile_gains,
+    refine_model,
+    refined_base,
+    score,
+    screened_base,
+    simulate_segment,
+    split_coverage,
+    synthetic_effect_record,
+    whole_record_split,
+)
 from ._residuals import (
     autocorrelation,
     candidate_signals,
@@ -57,4 +77,17 @@ __all__ = [
     "describe",
     "unexplained_report",
     "plot_correction",
+    # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).
+    "applicable_effects",
+    "fold_splits",
+    "n_parameters",
+    "profile_gains",
+    "refine_model",
+    "refined_base",
+    "score",
+    "screened_base",
+    "simulate_segment",
+    "split_coverage",
+    "synthetic_effect_record",
+    "whole_record_split",
 ]

@@ -50,7 +50,6 @@ Procedure (`diagnose`):
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 from typing import TYPE_CHECKING
 
@@ -85,8 +84,10 @@ HOLDOUT_FRACTION = 0.3
 
 
 def _log(msg, verbose):
-    if verbose:
-        print(msg, file=sys.stderr, flush=True)
+    """A progress line of `diagnose` (``verbose``): logged, and shown on stderr when logging is not configured."""
+    from .._progress import say
+
+    say(msg, verbose)
 
 
 # -- base model and split ---------------------------------------------------------

@@ -25,9 +25,17 @@ from ._baselines import (
     tau_grid,
 )
 from ._choose import COLD_FRACTION, START_FRACTIONS, auto_structure, fitted_memory_start, refine_thermal_start, screen_start
+from ._decimate import decimate_mask, decimate_record, fit_stride
 from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
 from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, rmse
-from ._multi_record import add_record_extras, data_checks_doc, data_checks_markdown, fit_records, write_records_outputs
+from ._multi_record import (
+    add_record_extras,
+    data_checks_doc,
+    data_checks_markdown,
+    fit_records,
+    loro_sentences,
+    write_records_outputs,
+)
 from ._recalibrate import CALIBRATION_PARAMETERS, Recalibrated, after_segment_metrics, recalibrate, segment_indices
 from ._split import SPLITS, split_masks
 from .linear import METHODS, LinearSolution, column_scale, solve
@@ -89,4 +97,9 @@ __all__ = [
     "max_abs_error",
     "mean_abs_error",
     "metrics",
+    # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).
+    "decimate_mask",
+    "decimate_record",
+    "fit_stride",
+    "loro_sentences",
 ]

@@ -19,7 +19,6 @@ refinement can settle on any start temperature between cold and equilibrium.
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 
 import jax.numpy as jnp
@@ -28,6 +27,7 @@ import numpy as np
 from .. import _config  # noqa: F401
 from .._compile_cache import release_if_needed
 from .._errors import UserInputError
+from .._progress import say as progress_line
 from ..models._hysteresis import thermal_of
 from ._fit import as_fit_data, fit
 
@@ -208,7 +208,7 @@ def screen_start(
         starts = {"steady": ("steady",), "cold": ("cold",)}.get(thermal_start, ("steady", *START_FRACTIONS))
     else:
         inputs, starts = (None,), (None,)
-    say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: None)
+    say = progress_line if progress else (lambda msg: None)
     table, results = [], {}  # results[(sign, input, start)] = (loss, profiled model, key, info)
     t_all = time.perf_counter()
 

@@ -29,26 +29,30 @@ equal results.
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
-from typing import Any, NamedTuple
+from collections.abc import Iterable, Sequence
+from typing import Any, NamedTuple, TypeVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 from .._compile_cache import release_if_needed
 from .._errors import UserInputError
-from .._progress import count_step
+from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ..models._hysteresis import hysteresis_of, thermal_of
 from . import varpro
 from .varpro import FIT_SOLVE
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
+
+#: A model type: the initialisers return a model of the class they were given.
+_Model = TypeVar("_Model", bound=eqx.Module)
 
 
 class FitResult(NamedTuple):
@@ -64,7 +68,7 @@ class FitResult(NamedTuple):
     info: dict | None = None  # stage details: profile grid, timings
 
 
-def as_fit_data(data, dt=None):
+def as_fit_data(data: Any, dt: float | None = None) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
     """Normalise fit data to a tuple of ``(u, y, dt)`` float64 numpy triples.
 
     Accepts a `Record`, a sequence of `Record`, a ``(u, y)`` pair with ``dt``,
@@ -164,7 +168,7 @@ def _set_k1(model, k1):
     return eqx.tree_at(lambda m: m.thermal.k1, model, jnp.asarray(k1, dtype=jnp.float64))
 
 
-def default_trainable(model, *, thresholds=False, tilts=False):
+def default_trainable(model: eqx.Module, *, thresholds: bool = False, tilts: bool = False) -> Any:
     """PyTree of bools: train thermal k1 and the hysteresis weights, keep grids (EUPI: optionally train them).
 
     The hysteresis part says which of its fields stay fixed (`AbstractHysteresis.fixed_fields`);
@@ -231,7 +235,7 @@ def _check_finite_features(A, i, u):
     )
 
 
-def init_linear(model, data, dt=None, *, weights=None):
+def init_linear(model: _Model, data: Any, dt: float | None = None, *, weights: Any = None) -> _Model:
     """Paper's constrained least squares for the linear gains, other parameters fixed.
 
     Returns a copy of ``model`` with the hysteresis weights (or, for `JouleLag`, the
@@ -287,7 +291,16 @@ def k1_projection(model: Any, data: tuple, weights: tuple, part: tuple | None = 
     return varpro.LinearProjection(lambda x: _set_log_k1(model, x), design, nonneg, setw, FIT_SOLVE)
 
 
-def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True, progress=False):
+def init_profile(
+    model: _Model,
+    data: Any,
+    dt: float | None = None,
+    *,
+    weights: Any = None,
+    k1_grid: int | ArrayLike = 32,
+    refine: bool = True,
+    progress: bool = False,
+) -> tuple[_Model, dict[str, Any]]:
     """Variable-projection initialiser: best ``k1`` with the gains profiled out by BVLS.
 
     ``k1_grid`` is a number of log-spaced candidates (see `_default_k1_grid`) or
@@ -326,7 +339,7 @@ def init_profile(model, data, dt=None, *, weights=None, k1_grid=32, refine=True,
         return out
 
     def report(done, total):
-        print(f"  profile: {done}/{total} k1 candidates", file=sys.stderr)
+        say(f"  profile: {done}/{total} k1 candidates")
 
     losses = varpro.grid_losses(evaluate, grid, chunk, progress=report if progress else None)
     res = varpro.search(
@@ -468,20 +481,20 @@ _INITS = ("auto", "profile", "linear", None)
 
 
 def fit(
-    model,
-    data,
-    dt=None,
+    model: eqx.Module,
+    data: Any,
+    dt: float | None = None,
     *,
-    solver="lm",
-    trainable=None,
-    init="auto",
-    max_steps=300,
-    rtol=1e-6,
-    atol=1e-9,
-    weights=None,
-    k1_grid=32,
-    progress=False,
-):
+    solver: str | None = "lm",
+    trainable: Any = None,
+    init: str | None = "auto",
+    max_steps: int = 300,
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    weights: Any = None,
+    k1_grid: int | ArrayLike = 32,
+    progress: bool = False,
+) -> FitResult:
     """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
 
     ``init``: ``"profile"`` (variable projection over thermal ``k1``, see
@@ -504,7 +517,6 @@ def fit(
     data = as_fit_data(data, dt)
     weights = _as_weights(weights, data)
     spec = default_trainable(model) if trainable is None else trainable
-    say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: None)
     info = {}
     t0 = time.perf_counter()
     k1_trainable = _has_k1(model) and bool(spec.thermal.k1)
@@ -515,10 +527,13 @@ def fit(
             else ("linear" if _linear_part(model) is not None else None)
         )
     if init == "profile":
-        say(f"initialiser: profiling k1 ({k1_grid if np.ndim(k1_grid) == 0 else len(k1_grid)} candidates, gains by bounded LS)")
+        say(
+            f"initialiser: profiling k1 ({k1_grid if np.ndim(k1_grid) == 0 else len(k1_grid)} candidates, gains by bounded LS)",
+            progress,
+        )
         model, info["profile"] = init_profile(model, data, weights=weights, k1_grid=k1_grid, progress=progress)
     elif init == "linear":
-        say("initialiser: bounded least squares for the gains")
+        say("initialiser: bounded least squares for the gains", progress)
         model = init_linear(model, data, weights=list(weights))
     info["init"] = init
     info["init_seconds"] = time.perf_counter() - t0
@@ -535,11 +550,10 @@ def fit(
         info["total_seconds"] = time.perf_counter() - t0
         return FitResult(model, init_loss, 0, True, f"initialiser only ({init})", "none", init_loss, info)
     start = _lift_zero_gains(model, spec, profiled=init == "profile")
-    say(f"joint refinement: {solver}, up to {max_steps} steps")
+    say(f"joint refinement: {solver}, up to {max_steps} steps", progress)
     t1 = time.perf_counter()
-    from .._progress import heartbeat
-
-    with heartbeat(f"joint refinement ({solver})", enabled=progress, max_steps=max_steps if solver in _COUNTED else None):
+    counted = max_steps if solver in _COUNTED else None
+    with shown(progress), heartbeat(f"joint refinement ({solver})", enabled=progress, max_steps=counted):
         fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
     info["refine_seconds"] = time.perf_counter() - t1
     info["total_seconds"] = time.perf_counter() - t0
@@ -564,14 +578,23 @@ def fit(
     return FitResult(fitted, loss, n_steps, ok, message, solver, init_loss, info)
 
 
-def fit_many(model, datasets, *, weights=None, progress=True, names=None, **kwargs):
+def fit_many(
+    model: eqx.Module,
+    datasets: Iterable[Any],
+    *,
+    weights: Sequence[Any] | None = None,
+    progress: bool = True,
+    names: Sequence[str] | None = None,
+    **kwargs: Any,
+) -> list[FitResult | UserInputError]:
     """Fit one model template to many records or actuators; returns a list of `FitResult` (or the error).
 
     Each entry of ``datasets`` is anything `fit` accepts for one actuator.
     Records of one shape reuse the same compiled code (one compile per
     shape); the k1 profile inside each fit is one `vmap` over candidates.
     A record that cannot be fitted gives its `UserInputError` in the list
-    instead of stopping the batch.  Progress goes to stderr.
+    instead of stopping the batch.  ``progress``: one line per record on the progress logger, shown on
+    stderr unless logging is configured (`smafl_jax._progress.shown`).
     """
     datasets = list(datasets)
     weights = [None] * len(datasets) if weights is None else list(weights)
@@ -587,7 +610,7 @@ def fit_many(model, datasets, *, weights=None, progress=True, names=None, **kwar
         if progress:
             status = f"loss {r.loss:.4g}, {r.message}" if isinstance(r, FitResult) else f"failed: {r}"
             el = time.perf_counter() - t0
-            print(f"[{i + 1}/{len(datasets)}] {name}: {status} ({el:.1f} s elapsed)", file=sys.stderr)
+            say(f"[{i + 1}/{len(datasets)}] {name}: {status} ({el:.1f} s elapsed)")
     return out
 
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 
@@ -18,13 +20,13 @@ def _pair(y, yhat):
     return y, yhat
 
 
-def error_ratio(y, yhat):
+def error_ratio(y: ArrayLike, yhat: ArrayLike) -> jax.Array:
     """Eq. (3): ``max|y - yhat| / (max y - min y) * 100`` in percent of the measured output range."""
     y, yhat = _pair(y, yhat)
     return jnp.max(jnp.abs(y - yhat)) / (jnp.max(y) - jnp.min(y)) * 100.0
 
 
-def e_mean(y_ref, y):
+def e_mean(y_ref: ArrayLike, y: ArrayLike) -> jax.Array:
     """Eq. (8): mean absolute tracking error ``sum |y_d - y| / N``."""
     y_ref, y = _pair(y_ref, y)
     return jnp.mean(jnp.abs(y_ref - y))
@@ -33,17 +35,17 @@ def e_mean(y_ref, y):
 mean_abs_error = e_mean
 
 
-def rmse(y, yhat):
+def rmse(y: ArrayLike, yhat: ArrayLike) -> jax.Array:
     y, yhat = _pair(y, yhat)
     return jnp.sqrt(jnp.mean((y - yhat) ** 2))
 
 
-def max_abs_error(y, yhat):
+def max_abs_error(y: ArrayLike, yhat: ArrayLike) -> jax.Array:
     y, yhat = _pair(y, yhat)
     return jnp.max(jnp.abs(y - yhat))
 
 
-def metrics(y, yhat):
+def metrics(y: ArrayLike, yhat: ArrayLike) -> dict[str, float]:
     """All fit metrics as plain floats: ``rmse``, ``e_r_percent``, ``max_abs_error``, ``mean_abs_error``."""
     y = np.asarray(y, dtype=np.float64)
     yhat = np.asarray(yhat, dtype=np.float64)

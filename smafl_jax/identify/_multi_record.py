@@ -25,14 +25,15 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-import sys
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .._errors import UserInputError
+from .._progress import say as progress_line
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._metrics import metrics
@@ -239,7 +240,9 @@ def _unique_names(records) -> list[str]:
     return [f"{n}#{i}" if seen[n] > 1 else n for i, n in enumerate(names)]
 
 
-def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_record_kwargs):
+def fit_records(
+    records: Any, *, model: str = "auto", progress: bool = False, **fit_record_kwargs: Any
+) -> tuple[Any, dict[str, Any], dict[str, Any]]:
     """Joint fit of one model to several records, with leave-one-record-out validation; ``(model, doc, details)``.
 
     ``records``: a list of `Record` with outputs (one column choice).  Options
@@ -286,7 +289,7 @@ def fit_records(records, *, model: str = "auto", progress: bool = False, **fit_r
         )
     loro = opts["split"] == "auto" and len(records) >= 2
     names = _unique_names(records)
-    say = (lambda msg: print(msg, file=sys.stderr)) if progress else (lambda msg: log.info(msg))
+    say = progress_line if progress else log.info
     fit_kw = {k: opts[k] for k in ("solver", "max_steps", "thresholds", "tilts", "grid", "orientation", "thermal_start", "sees")}
     squared = is_voltage(records[0].input_name, records[0].units)
     t_all = time.perf_counter()

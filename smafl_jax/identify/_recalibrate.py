@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from numpy.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 from .._errors import UserInputError
@@ -194,11 +195,11 @@ def _solve(model, p0, args, max_steps):
 
 
 def recalibrate(
-    model,
-    u,
-    y,
-    dt,
-    segment,
+    model: eqx.Module,
+    u: ArrayLike,
+    y: ArrayLike,
+    dt: float,
+    segment: tuple[float, float] | slice,
     *,
     fit: Sequence[str] | str = CALIBRATION_PARAMETERS,
     t0: float = 0.0,

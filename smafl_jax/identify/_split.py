@@ -23,6 +23,8 @@ this module turns them into masks over one whole-record simulation.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .._errors import UserInputError
@@ -35,7 +37,9 @@ from .._choices import SPLITS
 BRANCH_POSITION = 2  # the residue of `branch_partition` used by fit: the 3rd, 6th, ... sorted labels
 
 
-def split_masks(record, split="auto", *, val_fraction=0.3, branch_column="branch"):
+def split_masks(
+    record: Any, split: str = "auto", *, val_fraction: float = 0.3, branch_column: str = "branch"
+) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """``(train_mask, val_mask, info)`` for ``record`` (boolean arrays over its samples)."""
     n = len(record)
     if split not in SPLITS:

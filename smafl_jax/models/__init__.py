@@ -9,7 +9,15 @@ entry points, padded calls and trained-range checks.
 from ._cascade import SEES, Cascade
 from ._constraints import POSITIVE_FLOOR, as_float_array, constrain, log_jacobian, parameter, positive, positive_mask, unconstrain
 from ._eupi import EUPI, threshold_grid, tilt_grid
-from ._hysteresis import AbstractHysteresis, column_weight_scales, hysteresis_class, hysteresis_models, hysteresis_of, thermal_of
+from ._hysteresis import (
+    AbstractHysteresis,
+    column_weight_scales,
+    hysteresis_class,
+    hysteresis_models,
+    hysteresis_of,
+    linear_field_columns,
+    thermal_of,
+)
 from ._initial_state import INITIAL_STATE_RULES, estimate_initial_state, with_initial_state
 from ._joule_lag import JouleLag
 from ._operators import (
@@ -24,8 +32,11 @@ from ._operators import (
     play_weighted,
     resolve_method,
 )
-from ._padding import bucket_length, padded_call
+from ._padding import MIN_BUCKET, bucket_length, padded_call
 from ._preisach import (
+    EVERETT_INTERPOLANTS,
+    LAM_GRID,
+    N_LEVELS_GRID,
     Preisach,
     cv_fit_preisach,
     everett_weights,
@@ -34,8 +45,10 @@ from ._preisach import (
     forc_shaped,
     preisach_levels,
     relay_loop,
+    solve_penalised,
     tikhonov_matrix,
 )
+from ._range import range_check
 from ._simulate import simulate, simulate_batch
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
@@ -91,4 +104,12 @@ __all__ = [
     "simulate_batch",
     "bucket_length",
     "padded_call",
+    # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).
+    "linear_field_columns",
+    "MIN_BUCKET",
+    "EVERETT_INTERPOLANTS",
+    "LAM_GRID",
+    "N_LEVELS_GRID",
+    "solve_penalised",
+    "range_check",
 ]

@@ -9,6 +9,7 @@ optimisers never see a bound and the MCMC density picks up `log_jacobian`.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, TypeVar
 
 import equinox as eqx
 import jax
@@ -49,13 +50,16 @@ def as_float_array(x):
     return jnp.asarray(x, dtype=jnp.float64)
 
 
-def parameter(**kwargs):
+_Tree = TypeVar("_Tree")
+
+
+def parameter(**kwargs: Any) -> Any:
     """Declare a free (unconstrained) numeric `equinox.Module` field, converted to a float64 array."""
     kwargs.setdefault("converter", as_float_array)
     return eqx.field(**kwargs)
 
 
-def positive(**kwargs):
+def positive(**kwargs: Any) -> Any:
     """Declare an `equinox.Module` field that must stay > 0 (converted to a float64 array)."""
     metadata = dict(kwargs.pop("metadata", {}) or {})
     metadata["constraint"] = "positive"
@@ -96,17 +100,17 @@ def _map_fields(model, fn):
     return eqx.tree_at(lambda m: [getattr(m, n) for n in names], model, values, is_leaf=lambda x: x is None)
 
 
-def unconstrain(model):
+def unconstrain(model: _Tree) -> _Tree:
     """Physical model -> unconstrained coordinates (positive fields via inverse softplus)."""
     return _map_fields(model, _softplus_inv)
 
 
-def constrain(raw):
+def constrain(raw: _Tree) -> _Tree:
     """Unconstrained coordinates -> physical model (positive fields via softplus)."""
     return _map_fields(raw, jax.nn.softplus)
 
 
-def log_jacobian(raw):
+def log_jacobian(raw: Any) -> jax.Array:
     """log |d constrain / d raw| summed over all positive fields (for densities in raw space)."""
     total = []
 
@@ -118,7 +122,7 @@ def log_jacobian(raw):
     return sum(total) if total else jnp.asarray(0.0)
 
 
-def positive_mask(model):
+def positive_mask(model: Any) -> Any:
     """PyTree of bools shaped like ``model``: True on leaves that are positivity-constrained."""
     marker = object()
     flagged = _map_fields(model, lambda x: _Flag(marker))

@@ -60,14 +60,14 @@ _INITS = ("descended", "zero", "consistent", "fitted")
 DESCENDED_LOGIT = 5.0
 
 
-def threshold_grid(n):
+def threshold_grid(n: int) -> np.ndarray:
     """Documented threshold rule on the normalised input: ``r_i = i / (2 n)``, i = 1..n."""
     if int(n) < 0:
         raise ValueError(f"number of thresholds must be >= 0, got {n}")
     return np.arange(1, int(n) + 1, dtype=np.float64) / (2.0 * max(int(n), 1))
 
 
-def tilt_grid(n, lo=0.4, hi=2.5):
+def tilt_grid(n: int, lo: float = 0.4, hi: float = 2.5) -> np.ndarray:
     """Tilts geometrically spaced in ``[lo, hi]``."""
     if int(n) < 0:
         raise ValueError(f"number of tilts must be >= 0, got {n}")

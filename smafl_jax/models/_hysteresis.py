@@ -214,13 +214,13 @@ def _orientation_line(orientation) -> str:
     return f"output orientation: {'rises' if orientation > 0 else 'falls'} with contraction"
 
 
-def hysteresis_of(model) -> AbstractHysteresis | None:
+def hysteresis_of(model: Any) -> AbstractHysteresis | None:
     """The hysteresis part of ``model`` (the model itself, a cascade's, an extended model's), or None."""
     h = getattr(model, "hysteresis", None)
     return h if isinstance(h, AbstractHysteresis) else None
 
 
-def thermal_of(model):
+def thermal_of(model: Any) -> Any:
     """The thermal stage that feeds ``model``'s hysteresis (a cascade's, an extended model's base cascade's), or None.
 
     The one place that answers "does this model have a thermal lag in front of its hysteresis?", so callers ask the

@@ -13,8 +13,10 @@ record starts wherever its own history left the actuator, so `simulate` takes a 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .._errors import UserInputError
 
@@ -25,6 +27,9 @@ INITIAL_STATE_RULES = ("fit", "steady", "cold", "estimate")
 _THERMAL_FRACTIONS = (0.35, 0.65, 0.95)
 #: Operator memory candidates of "estimate" (logits of `EUPI.with_fitted_memory`); None = the model's own.
 _MEMORY_LOGITS = {"as fitted": None, "descended": 8.0, "midway": 0.0, "ascended": -8.0}
+
+
+_Model = TypeVar("_Model")
 
 
 def _thermal_variant(model, rule, u_hi=None):
@@ -54,7 +59,9 @@ def _descended(model):
     return model.with_hysteresis(dataclasses.replace(h, init="descended", memory=None))
 
 
-def estimate_initial_state(model, u, y, dt, *, window=None):
+def estimate_initial_state(
+    model: _Model, u: ArrayLike, y: ArrayLike, dt: float, *, window: int | None = None
+) -> tuple[_Model, dict[str, Any]]:
     """``(model, info)``: the start candidate that best matches ``y`` over the first ``window`` samples.
 
     ``window`` defaults to the first 20 % of the record, at least 5 thermal time constants where the model
@@ -88,7 +95,9 @@ def estimate_initial_state(model, u, y, dt, *, window=None):
     return best[1], info
 
 
-def with_initial_state(model, rule, u=None, y=None, dt=None):
+def with_initial_state(
+    model: _Model, rule: str, u: ArrayLike | None = None, y: ArrayLike | None = None, dt: float | None = None
+) -> tuple[_Model, dict[str, Any]]:
     """``(model, info)`` with the start state set by ``rule`` (see the module docstring)."""
     if rule not in INITIAL_STATE_RULES:
         raise UserInputError(f"initial state rule must be one of {INITIAL_STATE_RULES}, got {rule!r}")

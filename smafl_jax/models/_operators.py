@@ -23,8 +23,11 @@ on whole-model forward passes (benchmarks/bench_parallel_time.py).
 
 from __future__ import annotations
 
+from typing import TypeVar
+
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from .. import _config, ops  # noqa: F401  (_config: x64)
 
@@ -81,7 +84,10 @@ def _has_methods(x) -> bool:
     return bool(getattr(type(x), "evaluation_methods", ()))
 
 
-def model_with_method(model, method: str):
+_Tree = TypeVar("_Tree")
+
+
+def model_with_method(model: _Tree, method: str) -> _Tree:
     """Copy of ``model`` with every part that has evaluation methods (EUPI, JouleThermal) evaluated by ``method``.
 
     Works for a `Cascade`, an `EUPI`, a `JouleThermal` or any model containing them (e.g. an
@@ -110,7 +116,7 @@ def _bounds(u, r, alpha):
     return u - r, alpha * (u + r)
 
 
-def play_step(carry, u, r, alpha):
+def play_step(carry: ArrayLike, u: ArrayLike, r: ArrayLike, alpha: ArrayLike) -> tuple[jax.Array, jax.Array]:
     """One step of a bank of play operators: ``(F(k-1), u(k)) -> (F(k), F(k))``."""
     lo, hi = _bounds(u, r, alpha)
     y = jnp.maximum(lo, jnp.minimum(hi, carry))
@@ -129,7 +135,7 @@ def _prepare(u, r, alpha, y0):
     return u, r, alpha, y0
 
 
-def play(u, r, alpha=1.0, y0=None, method="scan"):
+def play(u: ArrayLike, r: ArrayLike, alpha: ArrayLike = 1.0, y0: ArrayLike | None = None, method: str = "scan") -> jax.Array:
     """Outputs ``(T, n)`` of a bank of play operators.
 
     ``method``: ``"scan"`` (sequential), ``"assoc"`` / ``"chunked"`` / ``"segmented"``
@@ -142,17 +148,19 @@ def play(u, r, alpha=1.0, y0=None, method="scan"):
     return ops.play(u, r, alpha, y0, method=method)
 
 
-def play_scan(u, r, alpha=1.0, y0=None):
+def play_scan(u: ArrayLike, r: ArrayLike, alpha: ArrayLike = 1.0, y0: ArrayLike | None = None) -> jax.Array:
     """Outputs ``(T, n)`` of ``n`` play operators via `jax.lax.scan`."""
     return play(u, r, alpha, y0, method="scan")
 
 
-def play_assoc(u, r, alpha=1.0, y0=None):
+def play_assoc(u: ArrayLike, r: ArrayLike, alpha: ArrayLike = 1.0, y0: ArrayLike | None = None) -> jax.Array:
     """Same as `play_scan`, evaluated in parallel with `jax.lax.associative_scan`."""
     return play(u, r, alpha, y0, method="assoc")
 
 
-def play_weighted(u, r, alpha, weights, y0=None, method="scan"):
+def play_weighted(
+    u: ArrayLike, r: ArrayLike, alpha: ArrayLike, weights: ArrayLike, y0: ArrayLike | None = None, method: str = "scan"
+) -> jax.Array:
     """``play(u, r, alpha, y0) @ weights`` without storing the ``(T, n)`` outputs for ``method="scan"``.
 
     With ``"scan"`` the weighted sum is taken inside the scan step, so only ``T``
@@ -172,7 +180,7 @@ def play_weighted(u, r, alpha, weights, y0=None, method="scan"):
     return ops.play(u, r, alpha, y0, weights=weights, method=method)
 
 
-def consistent_initial_state(u0, r, alpha=1.0):
+def consistent_initial_state(u0: ArrayLike, r: ArrayLike, alpha: ArrayLike = 1.0) -> jax.Array:
     """Initial state the operators reach when ``u0`` is approached from a relaxed (zero) state."""
     lo, hi = _bounds(jnp.asarray(u0, dtype=jnp.float64), jnp.asarray(r), jnp.asarray(alpha))
     return jnp.maximum(lo, jnp.minimum(hi, jnp.zeros_like(lo)))

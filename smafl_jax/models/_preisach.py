@@ -53,7 +53,7 @@ import numpy as np
 
 from .. import _config  # noqa: F401
 from .._io import register_model
-from .._progress import Steps
+from .._progress import Steps, say
 from ._constraints import as_float_array, positive
 from ._hysteresis import AbstractHysteresis
 from ._padding import padded_call
@@ -507,8 +507,6 @@ def cv_fit_preisach(
     Returns ``(model, info)``; ``info`` holds the CV table, the choice and the
     effective degrees of freedom.
     """
-    import sys
-
     if criterion not in ("rmse", "max"):
         raise ValueError(f"criterion must be 'rmse' or 'max', got {criterion!r}")
     key = "cv_rmse" if criterion == "rmse" else "cv_max_abs"
@@ -554,12 +552,7 @@ def cv_fit_preisach(
                 "cv_max_abs": mx,
             }
             table.append(row)
-            if verbose:
-                print(
-                    f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}",
-                    file=sys.stderr,
-                    flush=True,
-                )
+            say(f"  preisach inner CV: n_levels {n}, lam {lam:.0e}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}", verbose)
             if best is None or row[key] < best[key]:
                 best = row
         use_everett = everett and not linear and inner.startswith("leave-one") and forc_shaped(segs)
@@ -578,12 +571,7 @@ def cv_fit_preisach(
                 "cv_max_abs": mx,
             }
             table.append(row)
-            if verbose:
-                print(
-                    f"  preisach inner CV: n_levels {n}, everett-{interp}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}",
-                    file=sys.stderr,
-                    flush=True,
-                )
+            say(f"  preisach inner CV: n_levels {n}, everett-{interp}: rmse {row['cv_rmse']:.4g}, max {mx:.4g}", verbose)
             if row[key] < best[key]:
                 best = row
         steps.advance(note=f"{n} levels")

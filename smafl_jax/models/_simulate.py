@@ -5,6 +5,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 
@@ -44,13 +45,13 @@ def _as_inputs(u, dt, ndim):
     return u, dt
 
 
-def simulate(model, u, dt=None):
+def simulate(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> jax.Array:
     """Model output for a 1-D input record ``u`` sampled every ``dt`` seconds (compiled once per shape)."""
     u, dt = _as_inputs(u, dt, 1)
     return _simulate(model, u, dt)
 
 
-def simulate_batch(model, u, dt=None):
+def simulate_batch(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> jax.Array:
     """Model outputs ``(B, T)`` for a batch of input records ``(B, T)`` (one `vmap`, one compile)."""
     u, dt = _as_inputs(u, dt, 2)
     return _simulate_batch(model, u, dt)

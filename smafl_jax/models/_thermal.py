@@ -26,7 +26,9 @@ EUPI.  Initial state: ``"steady"`` (default: at rest with the first input,
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 from .._io import register_model
@@ -43,7 +45,7 @@ PAPER_K1 = 0.04988
 PAPER_K2 = 0.04172
 
 
-def thermal_step(theta, x, a, g):
+def thermal_step(theta: ArrayLike, x: ArrayLike, a: ArrayLike, g: ArrayLike) -> tuple[jax.Array, jax.Array]:
     """One exact ZOH step: ``(theta(k-1), U(k)) -> (theta(k), theta(k))``."""
     new = a * theta + (1.0 - a) * g * x * x
     return new, new
@@ -56,7 +58,7 @@ def _safe_sqrt(x):
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, x, 1.0)), 0.0)
 
 
-def effective_voltage(theta, k1, k2):
+def effective_voltage(theta: ArrayLike, k1: ArrayLike, k2: ArrayLike) -> jax.Array:
     """Quasi-static voltage the hysteresis sees: ``sqrt(theta k1 / k2)`` (= U at steady state)."""
     return _safe_sqrt(theta * (k1 / k2))
 

@@ -8,7 +8,6 @@ the measured output range *of that subset*.
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import numpy as np
 
 from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
+from .._progress import say
 from ..identify._choose import auto_structure, fitted_memory_start, screen_start
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
@@ -127,8 +127,7 @@ def fit_record(
     screening, init, screen_info = None, "auto", {}
     memory_used = "fitted" if memory == "fitted" else "rule"
     if hysteresis_of(start) is not None:
-        if progress:
-            print("screening start candidates (output orientation, thermal start) on the training samples", file=sys.stderr)
+        say("screening start candidates (output orientation, thermal start) on the training samples", progress)
         start, screening, screen_info = screen_start(
             start,
             rec,
@@ -331,11 +330,7 @@ def _polish(model, record, mask, solver, thresholds, tilts, progress):
     """
     spec = default_trainable(model, thresholds=thresholds, tilts=tilts)
     res = fit(model, record, solver=solver, trainable=spec, init=None, weights=[mask.astype(float)], max_steps=POLISH_STEPS)
-    if progress:
-        print(
-            f"full-rate polish of the view's fit: loss {res.init_loss:.6g} -> {res.loss:.6g} ({res.n_steps} steps)",
-            file=sys.stderr,
-        )
+    say(f"full-rate polish of the view's fit: loss {res.init_loss:.6g} -> {res.loss:.6g} ({res.n_steps} steps)", progress)
     return res.model
 
 
@@ -343,8 +338,7 @@ def _refit_whole(
     record, structure, chosen, grid, thermal_start, refinement, solver, max_steps, thresholds, tilts, progress, memory="fitted"
 ):
     """The split fit's structure choices, refitted on every sample of the record."""
-    if progress:
-        print("refitting the chosen structure on the whole record", file=sys.stderr)
+    say("refitting the chosen structure on the whole record", progress)
     ones = [np.ones(len(record))]
     if refinement == "kept" and max_steps > 0:
         # warm start from the split's refined model: the whole-record optimum is close, LM needs few steps
