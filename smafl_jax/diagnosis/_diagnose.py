@@ -1213,7 +1213,7 @@ def diagnose(
     p_threshold=None,
     holdout_residue=2,
     refit=True,
-    verbose=True,
+    verbose=False,
     rule="calibrated",
     fpr=CALIBRATED_DEFAULTS["fpr"],
     n_null=CALIBRATED_DEFAULTS["n_null"],
@@ -1575,7 +1575,7 @@ def whole_record_split(record):
     return Split("all", "every sample (training and held-out parts together)", segs, [], labels, [])
 
 
-def refit_whole_record(record, base, ext, result, verbose=True):
+def refit_whole_record(record, base, ext, result, verbose=False):
     """Deployed models: the base and the selected structure refitted on every sample of the record.
 
     The structure (effects, or the Preisach replacement) stays as chosen on the
