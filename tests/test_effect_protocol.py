@@ -18,7 +18,6 @@ import smafl_jax as sj
 from smafl_jax.effects import (
     EFFECTS,
     STAGES,
-    AbstractEffect,
     AbstractWarpEffect,
     Delay,
     ExtendedModel,
@@ -65,8 +64,28 @@ def _synthetic(cls, rng):
     return cls.synthesise(rng, {"dt": DT, "n": 4000, "y_lo": 0.2, "y_hi": 5.2, "sign": 1.0})[0]
 
 
-def test_registry_is_the_catalogue():
-    assert list(EFFECTS) == [
+def test_registry_is_the_catalogue_then_the_effect_files():
+    """The catalogue's effects first, in catalogue order; then every effect defined in a file of its own in
+    smafl_jax/effects/ (imported by the package: a new effect is one file)."""
+    import importlib
+    import pkgutil
+
+    import smafl_jax.effects as effects_pkg
+    from smafl_jax.effects.protocol import AbstractEffect
+
+    own_files = []
+    for info in sorted(pkgutil.iter_modules(effects_pkg.__path__), key=lambda m: m.name):
+        if info.name in ("protocol", "extended", "catalogue"):
+            continue
+        mod = importlib.import_module(f"smafl_jax.effects.{info.name}")
+        own_files += [
+            c.name
+            for c in vars(mod).values()
+            if isinstance(c, type) and issubclass(c, AbstractEffect) and c.__module__ == mod.__name__ and c.name in EFFECTS
+        ]
+    assert own_files, "no effect in a file of its own (sensor_lead.py should be one)"
+    assert list(EFFECTS)[len(list(EFFECTS)) - len(own_files) :] == own_files
+    assert list(EFFECTS)[: len(list(EFFECTS)) - len(own_files)] == [
         "delay",
         "sensor_lag",
         "ambient_drift",
@@ -79,7 +98,6 @@ def test_registry_is_the_catalogue():
         "output_saturation",
         "load_dependence",
         "strain_accumulation",
-        "sensor_lead",
     ]
     from smafl_jax.effects import Effect  # the old base-class name still imports
 

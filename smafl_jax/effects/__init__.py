@@ -6,6 +6,9 @@ A new effect is one class (a subclass of a stage class of `protocol`, decorated 
 
 from __future__ import annotations
 
+import importlib as _importlib
+import pkgutil as _pkgutil
+
 from . import catalogue as _catalogue  # noqa: F401  (registers the catalogue, in order)
 from .catalogue import (
     ACCUMULATION_TIME,
@@ -49,7 +52,15 @@ from .protocol import (
     effect_rank,
     register_effect,
 )
-from .sensor_lead import SensorLead  # noqa: F401  (registers sensor_lead, after the catalogue)
+
+# Every other module of this package is an effect in a file of its own: importing it registers it (after the catalogue,
+# in file-name order), so a new effect is one file and nothing else.
+_CORE_MODULES = ("protocol", "extended", "catalogue")
+for _info in sorted(_pkgutil.iter_modules(__path__), key=lambda m: m.name):
+    if _info.name not in _CORE_MODULES:
+        _importlib.import_module(f"{__name__}.{_info.name}")
+
+from .sensor_lead import SensorLead  # noqa: E402, F401  (a public name: sj.SensorLead; registered by the loop above)
 
 #: The built-in catalogue names in catalogue order (`effect_names` also lists effects registered later).
 EFFECT_NAMES = tuple(EFFECTS)
