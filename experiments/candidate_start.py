@@ -45,18 +45,12 @@ def _train_loss(model, split):
 
 
 def run(truth, seed, folder):
-    import smafl_jax as sj
-    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, refine_model, refined_base, screened_base
+    from smafl_jax.diagnosis import fit_extended, refine_model, refined_base
     from smafl_jax.diagnosis._diagnose import _held  # private: diagnosis helper, no public equivalent
 
-    path, case = ie.write_effect_record(folder, truth, seed)
-    rec = sj.load_record(path)
-    noise = case["noise_rms_measured"]
-    split = make_split(rec)
-    base0, _ = choose_base(rec)
-    screened, _ = screened_base(base0, split)
     t0 = time.time()
-    base_p, _ = fit_extended(screened, [], split)
+    rec, case, split, screened, base_p = ie.diagnosis_start(folder, truth, seed)
+    noise = case["noise_rms_measured"]
     base, profiled, doc = refined_base(base_p, screened, split)
     hb = _held(base, split)["rmse"]
     row = {"truth": truth, "seed": seed, "variant": case.get("effect_variant"), "drive": case.get("drive"),

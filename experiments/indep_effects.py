@@ -142,6 +142,19 @@ def write_effect_record(folder, name: str, seed: int) -> tuple[Path, dict]:
     return path, rec["case"]
 
 
+def diagnosis_start(folder, name: str, seed: int):
+    """The diagnosis' own start on one record: ``(record, case, split, screened start, variable-projection base)``,
+    as `smafl_jax.diagnose` builds them (shared by the oracle and candidate-start experiments)."""
+    import smafl_jax as sj
+    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, screened_base
+
+    path, case = write_effect_record(folder, name, seed)
+    rec = sj.load_record(path)
+    split = make_split(rec)
+    screened, _ = screened_base(choose_base(rec)[0], split)
+    return rec, case, split, screened, fit_extended(screened, [], split)[0]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, help="folder for the CSV records")

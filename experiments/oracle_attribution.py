@@ -72,18 +72,12 @@ def held(model, split):
 
 
 def run(truth, seed, folder, effects):
-    import smafl_jax as sj
-    from smafl_jax.diagnosis import choose_base, fit_extended, make_split, screened_base
+    from smafl_jax.diagnosis import fit_extended
     from smafl_jax.identify import fitted_memory_start
 
-    path, case = ie.write_effect_record(folder, truth, seed)
-    rec = sj.load_record(path)
-    noise = case["noise_rms_measured"]
-    split = make_split(rec)
-    base0, _ = choose_base(rec)
-    screened, _ = screened_base(base0, split)
     t0 = time.time()
-    base_p, _ = fit_extended(screened, [], split)
+    rec, case, split, screened, base_p = ie.diagnosis_start(folder, truth, seed)
+    noise = case["noise_rms_measured"]
     base_r = refine(base_p, split)
     # the operator memory at t = 0 fitted, as `smafl fit` may choose it (its validation block decides there)
     data, w = _train_data(split)

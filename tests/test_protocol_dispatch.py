@@ -230,6 +230,19 @@ def _calls(text: str, head: str):
         yield text.count("\n", 0, m.start()) + 1, text[m.start() : i]
 
 
+def _check_allowed(hits, allowed, what):
+    """Fail listing the ``(path, line number, text)`` hits that no ``allowed`` entry covers, and on entries that
+    cover no hit any more (an allow-list only shrinks)."""
+    found, seen = [], set()
+    for path, n, text in hits:
+        ok = {a for a in allowed if a[0] == path and a[1] in text}
+        seen |= ok
+        if not ok:
+            found.append(f"smafl_jax/{path}:{n}: {text}")
+    assert not found, what + ":\n" + "\n".join(found)
+    assert seen == allowed, f"allow-list entries no longer needed (remove them): {sorted(allowed - seen)}"
+
+
 def _sources() -> dict[str, str]:
     return {str(p.relative_to(PACKAGE)): p.read_text() for p in sorted(PACKAGE.rglob("*.py"))}
 
@@ -239,7 +252,7 @@ def test_no_type_switch_on_a_concrete_model_class_in_the_library():
     names = _concrete_model_classes(sources)
     assert {"EUPI", "Preisach", "Cascade", "JouleLag", "JouleThermal", "ExtendedModel"} <= names
     name_re = re.compile(r"\b(" + "|".join(sorted(names)) + r")\b")
-    found, seen = [], set()
+    found = []
     for path, text in sources.items():
         hits = [(n, c) for head in ("isinstance", "issubclass") for n, c in _calls(text, head) if name_re.search(c)]
         # switches on the class name: type(x).__name__ compared, or a saved model's "type" compared with a class name
@@ -247,13 +260,8 @@ def test_no_type_switch_on_a_concrete_model_class_in_the_library():
             for m in re.finditer(r"type\(\w+\)\.__name__ (?:==|!=|in|not in) [^:\n]*", line):
                 if name_re.search(m.group(0)):
                     hits.append((n, m.group(0)))
-        for n, call in hits:
-            allowed = [a for a in ALLOWED if a[0] == path and a[1] in call]
-            seen.update(allowed)
-            if not allowed:
-                found.append(f"smafl_jax/{path}:{n}: {call}")
-    assert not found, "type switches on model classes (ask the model through its protocol instead):\n" + "\n".join(found)
-    assert seen == ALLOWED, f"allow-list entries no longer needed (remove them): {sorted(ALLOWED - seen)}"
+        found += [(path, n, call) for n, call in hits]
+    _check_allowed(found, ALLOWED, "type switches on model classes (ask the model through its protocol instead)")
 
 
 #: Comparisons with a model's name that stay: ``(path relative to the package, text)``, each with its reason.
@@ -275,18 +283,14 @@ def test_no_switch_on_a_model_name_in_the_library():
     models = "|".join(sorted({"eupi", "cascade", "joule", *(cls.__name__.lower() for cls in MODELS)}))
     by_name = re.compile(r"""(?:==|!=|\bin|not in)\s*\(?[^:\n]*?["'](?:""" + models + r""")["']\)?""", re.I)
     saved_type = re.compile(r"""\[["']type["']\]\s*(?:==|!=|in|not in)[^:\n]*""")
-    found, seen = [], set()
+    found = []
     for path, text in _sources().items():
         for n, line in enumerate(text.splitlines(), 1):
             code = line.split("#")[0]
             if not (by_name.search(code) or saved_type.search(code)):
                 continue
-            allowed = [a for a in ALLOWED_NAME_SWITCHES if a[0] == path and a[1] in line]
-            seen.update(allowed)
-            if not allowed:
-                found.append(f"smafl_jax/{path}:{n}: {line.strip()}")
-    assert not found, "switches on model names (ask the model through its protocol instead):\n" + "\n".join(found)
-    assert seen == ALLOWED_NAME_SWITCHES, f"allow-list entries no longer needed: {sorted(ALLOWED_NAME_SWITCHES - seen)}"
+            found.append((path, n, line.strip()))
+    _check_allowed(found, ALLOWED_NAME_SWITCHES, "switches on model names (ask the model through its protocol instead)")
 
 
 # -- priors, report lines and start screening come from the protocol ------------------------------------

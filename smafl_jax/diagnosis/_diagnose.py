@@ -622,7 +622,6 @@ def refine_model(model, split, *, max_steps=REFINE_MAX_STEPS):
     from ..identify._fit import fit
     from ..models._hysteresis import hysteresis_of
 
-    release_if_needed()
     if hysteresis_of(model) is None or any(s.load is not None for s in split.train):
         return model
     data = [(s.u, s.y, s.dt) for s in split.train]
