@@ -107,6 +107,83 @@ def test_screening_finds_the_sensor_orientation_on_independent_records(orientati
     assert model.thermal.init == "given"
 
 
+def test_screening_takes_the_memory_rule_that_fits_an_independent_virgin_plant():
+    """The plant's operators start at 0 (a virgin actuator, tests/indep_plant.py memory="zero").  On this record the
+    descended rule cannot fit (profiled training MSE ~10x the noise variance) and the zero rule can: the screening
+    must take the zero rule, and the descended rule, pinned, must stay worse.  (On many records both rules fit to
+    the noise; which one wins there is not asserted.)"""
+    r = indep_plant.make_record(5, drive="multisine", rate_hz=10, minutes=4, start="cold", memory="zero")
+    h0, sd = r["heldout_start"], r["noise_sd"]
+    start = sj.Cascade.from_range(float(np.max(r["u"])), n_sym=4, n_alpha=2, n_asym=2)
+    w = np.zeros(len(r["u"]))
+    w[:h0] = 1.0
+    data, sign = [(r["u"], r["y"], r["dt"])], ("rises" if r["truth"]["sensor"]["orientation"] == "displacement" else "falls")
+    kw = dict(k1_grid=8, orientation=sign, thermal_start="cold")
+
+    def mse_over_noise(model):
+        e = np.asarray(model.simulate(r["u"], r["dt"]))[:h0] - r["y"][:h0]
+        return float(np.mean(e**2)) / sd**2
+
+    model, table, _ = screen_start(start, data, [w], memory="rule", **kw)
+    assert model.hysteresis.init == "zero"
+    assert {row["memory"] for row in table if "memory" in row} == set(type(start.hysteresis).RULE_INITS)
+    pinned, pinned_table, _ = screen_start(start, data, [w], memory="descended", **kw)
+    assert pinned.hysteresis.init == "descended" and {row.get("memory") for row in pinned_table} == {"descended"}
+    assert mse_over_noise(model) < 1.5 < 3.0 < mse_over_noise(pinned)
+    with pytest.raises(sj.UserInputError, match="memory"):
+        screen_start(start, data, [w], memory="consistent")
+
+
+def test_memory_choices_are_the_models_rules():
+    from smafl_jax._choices import HYSTERESIS, MEMORY  # private: the option tuples the CLI parser is built from
+    from smafl_jax.models import hysteresis_class
+
+    rules = {r for name in HYSTERESIS for r in hysteresis_class(name).RULE_INITS}
+    assert set(MEMORY) == {"auto", "fitted", "rule", *rules}
+    for name in HYSTERESIS:
+        assert set(hysteresis_class(name).RULE_INITS) <= set(hysteresis_class(name).INITS)
+
+
+def test_from_top_memory_matches_a_descent_from_the_top_of_the_range(rng):
+    """``init="from_top"`` equals the descended state after the input came down from the top of the range."""
+    m = _trained_eupi(rng)
+    rest = random_reversals(rng, 200)
+    u = np.concatenate([np.linspace(7.4, rest[0], 50, endpoint=False), rest])
+    after = np.asarray(dataclasses.replace(m, init="zero").simulate(u))[50:]
+    np.testing.assert_allclose(np.asarray(m.with_init("from_top").simulate(u[50:])), after, atol=1e-12)
+    # the upper bound of the descended rule differs for the operators above the middle of the range
+    assert np.max(np.abs(np.asarray(m.simulate(u[50:])) - after)) > 1e-3
+
+
+@pytest.mark.parametrize("rule", sj.EUPI.RULE_INITS)
+def test_screening_form_equals_the_rule_bit_for_bit(rng, rule):
+    """The screening profiles each rule in its ``init="levels"`` form (one compilation for all rules): same outputs,
+    same design matrix, for inputs that start low, high and above the model's range, and inside a cascade."""
+    m = _trained_eupi(rng)
+    for u in (random_reversals(rng, 300), 7.4 - random_reversals(rng, 300), 1.3 * random_reversals(rng, 300)):
+        exact, form = m.with_init(rule), m.screening_form(rule)
+        assert form.init == "levels" and form.with_init(rule) == exact
+        np.testing.assert_array_equal(np.asarray(form.simulate(u)), np.asarray(exact.simulate(u)))
+        np.testing.assert_array_equal(np.asarray(form.features(u)), np.asarray(exact.features(u)))
+    c = sj.Cascade.from_range(7.4).with_hysteresis(m).with_thermal_start("given", 2.0)
+    u = random_reversals(rng, 300)
+    np.testing.assert_array_equal(
+        np.asarray(c.with_hysteresis(m.screening_form(rule)).simulate(u, 0.5)),
+        np.asarray(c.with_hysteresis(m.with_init(rule)).simulate(u, 0.5)),
+    )
+
+
+def test_with_init_drops_a_fitted_memory():
+    m = sj.EUPI.from_range(0.0, 5.0, n_sym=3, n_alpha=2, n_asym=2).with_fitted_memory(0.0)
+    z = m.with_init("zero")
+    assert z.init == "zero" and z.memory is None
+    assert z.with_init("fitted").init == "fitted"
+    with pytest.raises(ValueError, match="init"):
+        m.with_init("warm")
+    p = sj.Preisach.from_range(0.0, 5.0)
+    assert p.with_init("zero").init == "zero" and set(type(p).RULE_INITS) <= set(type(p).INITS)
+
+
 def test_eupi_without_unparallel_operators_saves_and_loads():
     m = sj.EUPI.from_range(0.0, 7.4, n_alpha=0, n_asym=0)
     import json

@@ -12,7 +12,7 @@ from pathlib import Path
 
 
 def add_parser(sub):
-    from .._choices import MODELS, SOLVERS, SPLITS
+    from .._choices import MEMORY, MODELS, SOLVERS, SPLITS
 
     p = sub.add_parser("fit", help="fit a model to a record: fit.json, report.md and figures")
     p.add_argument(
@@ -86,10 +86,11 @@ def add_parser(sub):
     )
     p.add_argument(
         "--memory",
-        choices=("auto", "fitted", "rule"),
+        choices=MEMORY,
         default="auto",
         help="operators' state at t=0: fitted (each operator's place between its bounds is trained; one record), "
-        "rule (the model's init rule, descended), or auto (both refined, the validation samples choose)",
+        "rule (the best of the rules descended, zero and from_top on the training samples), or one of those rules, "
+        "or auto (rule and fitted both refined, the validation samples choose)",
     )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")

@@ -299,6 +299,7 @@ def init_profile(
     weights: Any = None,
     k1_grid: int | ArrayLike = 32,
     refine: bool = True,
+    xatol: float = 1e-7,
     progress: bool = False,
 ) -> tuple[_Model, dict[str, Any]]:
     """Variable-projection initialiser: best ``k1`` with the gains profiled out by BVLS.
@@ -306,7 +307,7 @@ def init_profile(
     ``k1_grid`` is a number of log-spaced candidates (see `_default_k1_grid`) or
     an explicit array; the model's own ``k1`` is always tried as well.  The grid is
     evaluated in vmapped chunks, and the best candidate refined by a bounded 1-D
-    search on ``log k1`` between its neighbours (`smafl_jax.identify.varpro.search`).
+    search on ``log k1`` between its neighbours (`smafl_jax.identify.varpro.search`) to ``xatol`` in ``log k1``.
     Returns ``(model, info)`` with the grid, the profiled loss on it and the refined k1.
     """
     data = as_fit_data(data, dt)
@@ -347,7 +348,7 @@ def init_profile(
         grid,
         x_of=lambda k: np.array([np.log(k)]),
         losses=losses,
-        refine=varpro.Bounded(xatol=1e-7) if refine else None,
+        refine=varpro.Bounded(xatol=xatol) if refine else None,
         none_finite="the model output is not finite for any k1 candidate; check the input units and range",
     )
     if res.profiled.model is None:
@@ -493,6 +494,7 @@ def fit(
     atol: float = 1e-9,
     weights: Any = None,
     k1_grid: int | ArrayLike = 32,
+    profile_xatol: float = 1e-7,
     progress: bool = False,
 ) -> FitResult:
     """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
@@ -505,7 +507,8 @@ def fit(
     does the same.  ``weights``: per-record sample weights (0 = held out, e.g.
     a validation mask; the model still runs through those samples so its
     memory stays continuous).  ``trainable`` defaults to
-    `default_trainable(model)`.
+    `default_trainable(model)`.  ``k1_grid`` / ``profile_xatol``: the profile's k1
+    candidates and the tolerance of its 1-D refinement in ``log k1`` (`init_profile`).
     """
     release_if_needed()  # long sessions compile many programs: stay under the memory-map limit (`_compile_cache`)
     if init not in _INITS:
@@ -531,7 +534,9 @@ def fit(
             f"initialiser: profiling k1 ({k1_grid if np.ndim(k1_grid) == 0 else len(k1_grid)} candidates, gains by bounded LS)",
             progress,
         )
-        model, info["profile"] = init_profile(model, data, weights=weights, k1_grid=k1_grid, progress=progress)
+        model, info["profile"] = init_profile(
+            model, data, weights=weights, k1_grid=k1_grid, xatol=profile_xatol, progress=progress
+        )
     elif init == "linear":
         say("initialiser: bounded least squares for the gains", progress)
         model = init_linear(model, data, weights=list(weights))

@@ -24,7 +24,9 @@ its upper bound at the first input, the state an actuator is left in after the
 previous cycle came down to the starting input, so periodic loops between 0 and
 a maximum close on themselves as in the paper's figures; ``"zero"`` starts all
 operators at 0 (``F(-1) = 0``, a virgin actuator); ``"consistent"`` is the state
-reached when the first input is approached from 0; ``"fitted"`` places each
+reached when the first input is approached from 0; ``"from_top"`` the state left by
+a descent from the top of the model's input range to the first input (an actuator
+last driven through its full range); ``"fitted"`` places each
 operator at a trained position between its two bounds at the first input
 (``memory``: one logit per operator, 0 = midway, large = descended, very
 negative = ascended), for records that start on an unknown branch.
@@ -55,7 +57,12 @@ from ._operators import MODEL_METHODS, consistent_initial_state, play, play_step
 
 __all__ = ["EUPI", "threshold_grid", "tilt_grid"]
 
-_INITS = ("descended", "zero", "consistent", "fitted")
+_INITS = ("descended", "zero", "consistent", "fitted", "from_top", "levels")
+#: Inits whose state lives in the ``memory`` leaf.
+_MEMORY_INITS = ("fitted", "levels")
+#: Operator level before the first sample that stands for "descended" in ``init="levels"``: the first step's clamp
+#: ``max(lo, min(up, level))`` then gives the upper bound exactly, for any input the model can see.
+_ABOVE_ALL = 1e30
 #: Start logit of a fitted memory: sigmoid(5) = 0.993 of the way to the descended state, with a gradient left.
 DESCENDED_LOGIT = 5.0
 
@@ -76,6 +83,12 @@ def tilt_grid(n: int, lo: float = 0.4, hi: float = 2.5) -> np.ndarray:
     return np.geomspace(lo, hi, int(n))
 
 
+def _default_memory(init, n):
+    """The ``memory`` leaf a new model of rule ``init`` starts with: near the descended state (fitted logits, or
+    levels above every bound), None for the rules that need none."""
+    return {"fitted": jnp.full(n, DESCENDED_LOGIT), "levels": jnp.full(n, _ABOVE_ALL)}.get(init)
+
+
 @register_model
 class EUPI(AbstractHysteresis):
     """EUPI hysteresis model (eq. 2) as a PyTree; call `simulate(u)` for the output.
@@ -84,6 +97,8 @@ class EUPI(AbstractHysteresis):
     """
 
     INITS = _INITS
+    # "consistent" equals "zero" for a first input at or above u_ref (every input of the default grids)
+    RULE_INITS = ("descended", "zero", "from_top")
     trainable_groups = MappingProxyType({"thresholds": ("r_sym", "r_asym"), "tilts": ("alpha",)})
     scalable_thresholds = True
     evaluation_methods = MODEL_METHODS  # the ``method`` field: scan or an exact parallel-in-time form
@@ -99,7 +114,8 @@ class EUPI(AbstractHysteresis):
     u_ref: jnp.ndarray = parameter()
     u_span: jnp.ndarray = positive()
     # init="fitted": logit of each operator's start between its ascending (lower) and descending (upper)
-    # bound at the first input, trained with the gains (None for the other init rules)
+    # bound at the first input, trained with the gains; init="levels": each operator's output before the
+    # first sample (normalised units; the first step clamps it); None for the other init rules
     memory: jnp.ndarray | None = parameter(default=None)
     init: str = eqx.field(static=True, default="descended")
     # evaluation form of the operator bank: "scan" (sequential), "assoc" / "chunked" / "segmented" (exact
@@ -114,8 +130,10 @@ class EUPI(AbstractHysteresis):
             raise ValueError(f"EUPI orientation must be +1 or -1, got {self.orientation!r}")
         if self.init not in _INITS:
             raise ValueError(f"EUPI init must be one of {_INITS}, got {self.init!r}")
-        if (self.init == "fitted") != (self.memory is not None):
-            raise ValueError("EUPI init='fitted' needs memory (one logit per operator), and memory needs init='fitted'")
+        if (self.init in _MEMORY_INITS) != (self.memory is not None):
+            raise ValueError(
+                "EUPI init='fitted' / 'levels' needs memory (one value per operator), and memory needs one of those inits"
+            )
         if self.memory is not None and np.shape(self.memory) != (self.n_operators,):
             raise ValueError(f"memory must have shape ({self.n_operators},), got {np.shape(self.memory)}")
         if self.method not in MODEL_METHODS:
@@ -170,7 +188,7 @@ class EUPI(AbstractHysteresis):
             u_ref=jnp.asarray(ref),
             u_span=jnp.asarray(span),
             init=init,
-            memory=jnp.full(int(n_sym) + n_alpha * int(n_asym), DESCENDED_LOGIT) if init == "fitted" else None,
+            memory=_default_memory(init, int(n_sym) + n_alpha * int(n_asym)),
             method=method,
             orientation=int(orientation),
         )
@@ -200,6 +218,25 @@ class EUPI(AbstractHysteresis):
         to its upper bound (default: near the descended state), a trainable ``memory``."""
         logit = DESCENDED_LOGIT if logit is None else logit
         return dataclasses.replace(self, init="fitted", memory=jnp.full(self.n_operators, float(logit)))
+
+    def with_init(self, init: str) -> EUPI:
+        """Copy started by the rule ``init``; a fitted memory is dropped (its logits belong to ``init="fitted"``)."""
+        if init == "fitted":
+            return self if self.init == "fitted" else self.with_fitted_memory()
+        if init not in _INITS or init == "levels":
+            raise ValueError(f"EUPI init must be one of {tuple(i for i in _INITS if i != 'levels')}, got {init!r}")
+        return dataclasses.replace(self, init=init, memory=None)
+
+    def screening_form(self, rule: str) -> EUPI:
+        """The rule ``rule`` as pre-sample operator levels (``init="levels"``): the same outputs bit for bit, and one
+        traced structure for every rule, so the start screening compiles once instead of once per rule."""
+        if rule not in self.RULE_INITS:
+            raise ValueError(f"EUPI screening rules are {self.RULE_INITS}, got {rule!r}")
+        r, _ = self._bank()
+        # each rule is "the first step clamps a previous level": above every bound (descended), 0 (a virgin actuator),
+        # or the state at the top of the range, 1 - r (a descent from there)
+        level = {"descended": jnp.full_like(r, _ABOVE_ALL), "zero": jnp.zeros_like(r), "from_top": 1.0 - r}[rule]
+        return dataclasses.replace(self, init="levels", memory=level)
 
     def with_method(self, method: str) -> EUPI:
         return dataclasses.replace(self, method=method)
@@ -231,7 +268,7 @@ class EUPI(AbstractHysteresis):
             f"poly {[round(float(x), 4) for x in np.asarray(self.poly, dtype=float)]}, offset {float(self.offset):.4g}, "
             f"u_ref {float(self.u_ref):g}, u_span {float(self.u_span):g}, init {self.init}"
         ]
-        if self.memory is not None:
+        if self.init == "fitted":
             frac = 1.0 / (1.0 + np.exp(-np.asarray(self.memory, dtype=float)))
             lines.append(
                 f"operators at t = 0 (fitted memory; 0 = ascended, 1 = descended bound): median {np.median(frac):.2f}, "
@@ -244,9 +281,15 @@ class EUPI(AbstractHysteresis):
             y0 = a * (s0 + r)  # upper bound at the first input: state left by a descent to u(0)
         elif self.init == "consistent":
             y0 = consistent_initial_state(s0, r, a)
+        elif self.init == "from_top":
+            # left by a descent from the top of the model's range (s = 1) to the first input: operators whose
+            # upper bound lies above 1 - r sit at 1 - r, not at the bound (a descent from far above)
+            y0 = jnp.maximum(s0 - r, jnp.minimum(a * (s0 + r), 1.0 - r))
         elif self.init == "fitted":
             lo, up = s0 - r, a * (s0 + r)
             y0 = lo + jax.nn.sigmoid(self.memory) * (up - lo)
+        elif self.init == "levels":
+            y0 = self.memory
         else:
             y0 = None
         return y0
@@ -315,21 +358,22 @@ class EUPI(AbstractHysteresis):
 
     def with_linear_weights(self, theta):
         """Copy with gains taken from ``theta`` (column order of `features`)."""
-        theta = jnp.asarray(theta, dtype=jnp.float64)
+        # concrete gains are split in numpy: the profiled searches set gains hundreds of times per fit, and
+        # eager jnp slicing costs a dispatch per piece (1.7 ms -> 0.6 ms per call); traced gains stay jnp
+        xp = jnp if isinstance(theta, jax.core.Tracer) else np
+        theta = xp.asarray(theta, dtype=np.float64)
         nv, nw, npoly = np.shape(self.v)[0], np.size(self.w), np.shape(self.poly)[0]
         expected = 1 + nv + nw + npoly + 1
         if theta.shape != (expected,):
             raise ValueError(f"expected {expected} linear weights, got shape {theta.shape}")
-        i = 0
-        gain = theta[0]
-        i = 1
-        v = theta[i : i + nv]
-        i += nv
-        w = theta[i : i + nw].reshape(np.shape(self.w))
-        i += nw
-        poly = theta[i : i + npoly]
-        offset = theta[i + npoly]
-        return eqx.tree_at(lambda m: (m.gain, m.v, m.w, m.poly, m.offset), self, (gain, v, w, poly, offset))
+        parts = (
+            theta[0],
+            theta[1 : 1 + nv],
+            theta[1 + nv : 1 + nv + nw].reshape(np.shape(self.w)),
+            theta[1 + nv + nw : 1 + nv + nw + npoly],
+            theta[1 + nv + nw + npoly],
+        )
+        return eqx.tree_at(lambda m: (m.gain, m.v, m.w, m.poly, m.offset), self, tuple(jnp.asarray(p) for p in parts))
 
     # -- evaluation ------------------------------------------------------
     def simulate(self, u, dt=None):

@@ -40,6 +40,7 @@ Registry: the concrete classes are named in `smafl_jax._choices.HYSTERESIS` (a J
 from __future__ import annotations
 
 import abc
+import dataclasses
 from collections.abc import Collection
 from importlib import import_module
 from types import MappingProxyType
@@ -75,6 +76,9 @@ class AbstractHysteresis(eqx.Module):
     # __dataclass_fields__).
     #: Initial-state rules the model accepts as ``init`` (the first is the default).
     INITS = ()
+    #: The rules among `INITS` that need no extra parameter: a fit's start screening tries each of them
+    #: (`smafl_jax.identify.screen_start`), since the branch a record starts on is a property of the record.
+    RULE_INITS = ()
     #: Optional groups of grid fields a fit may train on request (``{"thresholds": ("r_sym", "r_asym")}``).
     trainable_groups = MappingProxyType({})
     #: ``features(x, threshold_scale=...)`` accepted: thresholds scaled per sample (the ``rate_dependence`` effect).
@@ -167,6 +171,20 @@ class AbstractHysteresis(eqx.Module):
     def denormalise(self, s):
         """Inverse of `normalise`."""
         return jnp.asarray(s, dtype=jnp.float64) * self.u_span + self.u_ref
+
+    def with_init(self, init: str) -> AbstractHysteresis:
+        """Copy started by the initial-state rule ``init`` (one of `INITS` that needs no extra parameter)."""
+        if init not in self.INITS:
+            raise ValueError(f"{type(self).__name__} init must be one of {self.INITS}, got {init!r}")
+        return dataclasses.replace(self, init=init)
+
+    def screening_form(self, rule: str) -> AbstractHysteresis:
+        """A copy whose output equals that of ``with_init(rule)`` for the start screening to profile.
+
+        A model may return a form whose traced structure is the same for every rule in `RULE_INITS` (the rule held in
+        an array, not a static field), so the screening compiles once for all rules; `with_init` turns the winner back.
+        """
+        return self.with_init(rule)
 
     def with_method(self, method: str) -> AbstractHysteresis:
         """Copy evaluated by ``method`` (models with parallel-in-time forms override; others have one form)."""

@@ -90,6 +90,7 @@ class Preisach(AbstractHysteresis):
     """
 
     INITS = _INITS
+    RULE_INITS = _INITS
 
     w: jnp.ndarray = positive()  # (n (n+1) / 2,) relay weights, np.tril_indices(n) order (i: up level, j: down level)
     offset: jnp.ndarray

@@ -126,6 +126,8 @@ def fit_record(
     t0 = time.perf_counter()
     screening, init, screen_info = None, "auto", {}
     memory_used = "fitted" if memory == "fitted" else "rule"
+    if memory not in ("auto", "fitted", "rule", *getattr(hysteresis_of(start), "RULE_INITS", ())):
+        raise UserInputError(f"unknown memory {memory!r}; choose auto, fitted, rule or one of the model's rules")
     if hysteresis_of(start) is not None:
         say("screening start candidates (output orientation, thermal start) on the training samples", progress)
         start, screening, screen_info = screen_start(
@@ -176,7 +178,8 @@ def fit_record(
 
     picks = []
     for s in starts:
-        candidates = [(memory_used, s)]
+        # the label is the rule the screening chose (descended / zero) or "fitted": the whole-record refit pins it
+        candidates = [(getattr(hysteresis_of(s), "init", memory_used), s)]
         if memory == "auto" and va.any() and init is None:
             alt = fitted_memory_start(s, rec, [tr.astype(float)])
             if alt is not None:
