@@ -328,3 +328,31 @@ def test_an_undecided_orientation_is_refined_both_ways_and_the_whole_record_fit_
     assert model.orientation == (1 if min(rmse, key=rmse.get) == "rises" else -1)
     e = np.asarray(sj.simulate(model, rec.u, rec.dt)) - rec.y
     np.testing.assert_allclose(np.sqrt(np.mean(e**2)), min(rmse.values()), rtol=1e-3)
+
+
+def test_a_memory_rule_replaces_the_default_only_when_training_and_validation_both_prefer_it():
+    """`_rule_of_input`: one validation block alone is a noisy judge of how a rule extrapolates (NiTi electric records)
+    and the training loss alone took the other output sign on a NiTi water step; a rule must win on both."""
+    from smafl_jax.identify._choose import _rule_of_input  # private: white-box test of the screening's rule choice
+
+    # best_by: (input, rule) -> (training loss, model, key); scores: (input, rule) -> validation SSE
+    best = {("voltage", "descended"): (1.0,), ("voltage", "zero"): (0.5,), ("voltage", "from_top"): (0.8,)}
+    assert _rule_of_input(
+        "voltage", best, {("voltage", "descended"): 3.0, ("voltage", "zero"): 9.0, ("voltage", "from_top"): 2.0}, "descended"
+    ) == ("voltage", "from_top")
+    # training prefers zero, validation does not: the default stays
+    assert _rule_of_input(
+        "voltage", best, {("voltage", "descended"): 3.0, ("voltage", "zero"): 9.0, ("voltage", "from_top"): 4.0}, "descended"
+    ) == ("voltage", "descended")
+    # both better: the lowest validation error among the dominating rules
+    assert _rule_of_input(
+        "voltage", best, {("voltage", "descended"): 3.0, ("voltage", "zero"): 1.0, ("voltage", "from_top"): 2.0}, "descended"
+    ) == ("voltage", "zero")
+    # validation prefers a rule whose training loss is worse: the default stays
+    worse = {**best, ("voltage", "zero"): (2.0,)}
+    assert _rule_of_input(
+        "voltage", worse, {("voltage", "descended"): 3.0, ("voltage", "zero"): 1.0, ("voltage", "from_top"): 4.0}, "descended"
+    ) == ("voltage", "descended")
+    # a default the screening did not run: the lowest training loss is the reference
+    only = {("heat", "zero"): (0.5,), ("heat", "from_top"): (0.4,)}
+    assert _rule_of_input("heat", only, {("heat", "zero"): 1.0, ("heat", "from_top"): 2.0}, "descended") == ("heat", "from_top")
