@@ -270,6 +270,7 @@ def test_strain_accumulation_c_is_profiled(truth, drives):
     )
 
 
+@pytest.mark.slow  # ~55 s; the calibrated rule's acceptance of strain_accumulation is tested by default
 def test_diagnosis_finds_strain_accumulation(truth, drives):
     rec, true = synthetic_effect_record(truth, drives, "strain_accumulation", seed=6)
     res = diagnose(rec, max_candidates=2, refit=False, verbose=False, rule="legacy", refine=False).report
@@ -369,6 +370,7 @@ def test_residual_statistics(rng):
 # -- blind diagnosis (quick subset; the full confusion table is the slow test below) ----
 
 
+@pytest.mark.slow  # ~28 s; the legacy rule (kept for comparison)
 def test_diagnosis_finds_creep(truth, drives):
     rec, true = synthetic_effect_record(truth, drives, "creep", seed=7)
     res = diagnose(rec, max_candidates=2, verbose=False, rule="legacy", refine=False).report
@@ -489,7 +491,11 @@ def test_nonlocal_memory_not_offered_with_dynamics():
     rec = _preisach_forc_record(0.5, False)  # dt 0.5 s, no branch column: not rate-free (cascade base)
     with pytest.raises(UserInputError, match=r"rate-free records only.*nothing left to test"):
         diagnose(rec, effects=["nonlocal_memory"], verbose=False)
-    # beside an applicable effect it is dropped with a warning in the result
+
+
+@pytest.mark.slow  # ~40 s (a whole diagnosis); the refusal above is the default-suite check
+def test_nonlocal_memory_beside_an_applicable_effect_is_dropped_with_a_warning():
+    rec = _preisach_forc_record(0.5, False)  # dt 0.5 s, no branch column: not rate-free (cascade base)
     res = diagnose(rec, effects=["nonlocal_memory", "delay"], max_candidates=1, refit=False, verbose=False, refine=False).report
     assert all(c["name"] != "nonlocal_memory" for c in res["candidates"])
     assert any("nonlocal_memory" in w and "rate-free" in w for w in res["warnings"])
@@ -693,6 +699,7 @@ def test_screened_base_fits_a_length_sensor_and_a_cold_start(truth, drives):
     assert rmse["screened"] < 2.0 * 0.003 < 0.5 * rmse["fixed"], rmse
 
 
+@pytest.mark.slow  # ~90 s; experiments/oracle_attribution.py measures the same on more records
 def test_refined_base_fits_the_operator_memory_of_an_independent_clean_record():
     """The diagnosis base is refined with its thresholds, tilts and a fitted operator memory (`refined_base`): on a
     clean record of the independent numpy plant (no smafl_jax code; the plant starts on a branch the rule memory
