@@ -219,9 +219,10 @@ def screen_start(
     data leaves the trained branches, which the training loss cannot see.
 
     ``memory``: "rule" screens every candidate under each initial-state rule of the hysteresis class
-    (`AbstractHysteresis.RULE_INITS`: an EUPI's descended, zero (virgin) and from_top states); the rule is then
-    chosen with the hysteresis input on ``val_weights`` when given, else by training loss; a rule's name pins it; "fitted" (hysteresis models that support it) then starts every
-    operator at a trainable position between its bounds at the first input (`EUPI.with_fitted_memory`),
+    (`AbstractHysteresis.RULE_INITS`: an EUPI's descended, zero (virgin) and from_top states); with ``val_weights``
+    each hysteresis input keeps the first rule unless another beats it on training loss and held-out error both
+    (`_rule_of_input`), else the lowest training loss wins; a rule's name pins it; "fitted" (hysteresis models that
+    support it) then starts every operator at a trainable position between its bounds at the first input (`EUPI.with_fitted_memory`),
     screened over descended / midway / ascended starts.  Why both rules: the rule decides the k1 profile
     and the output sign; measured on an independent cold multisine record whose operators start at 0, the
     descended rule fitted at best 1.6x the noise and the fit took the wrong sign with k1 19x too small
