@@ -21,19 +21,27 @@ def _finite_numbers(obj, path="paper.json"):
         yield path, obj
 
 
-@pytest.fixture(scope="module")
-def paper_run(tmp_path_factory):
+def _run_paper(work, *extra):
     # run as a user does: from a working folder, with the default relative --out
-    work = tmp_path_factory.mktemp("paper")
     cwd = os.getcwd()
     os.chdir(work)
     try:
-        assert cli_main(["paper", "--quick"]) == 0
+        assert cli_main(["paper", "--quick", *extra]) == 0
     finally:
         os.chdir(cwd)
     return work / "out" / "paper"
 
 
+@pytest.fixture(scope="module")
+def paper_run(tmp_path_factory):
+    # Without the real records (as on a clean CI checkout): their diagnosis (the SMA reversal branches, ~80 s on
+    # 2 cores) is covered by the slow test below; this fixture is about the report and its files agreeing.
+    work = tmp_path_factory.mktemp("paper")
+    (work / "no_real_data").mkdir()
+    return _run_paper(work, "--real-data", str(work / "no_real_data"))
+
+
+@pytest.mark.xdist_group("paper_run")
 def test_report_files_and_figures_exist(paper_run):
     out = paper_run
     md = (out / "report.md").read_text()
@@ -49,6 +57,7 @@ def test_report_files_and_figures_exist(paper_run):
         assert (out / key).is_file(), key
 
 
+@pytest.mark.xdist_group("paper_run")
 def test_numbers_are_finite_and_consistent_with_output_files(paper_run):
     out = paper_run
     paper = json.loads((out / "paper.json").read_text())
@@ -78,6 +87,8 @@ def test_numbers_are_finite_and_consistent_with_output_files(paper_run):
         assert diag["extended"]["heldout_rmse"] == pytest.approx(row["extended_heldout_rmse"], rel=1e-12)
     # the bundled record has no hidden effect: the diagnosis must not invent one
     assert paper["diagnosis"]["rows"][0]["selected"] == []
+    # no real records in the folder given: said in the report, not silently left out
+    assert not paper["diagnosis"]["real_data_present"] and "real measured records were not found" in md
 
 
 def test_control_ranking_needs_a_margin_in_both_windows():
@@ -98,3 +109,17 @@ def test_control_ranking_needs_a_margin_in_both_windows():
     # both on target in the settled window: a tie there, not a relative difference of round-off
     r = control_ranking(rows((0.1616, 1.1e-9), (0.1593, 2.4e-6)))
     assert r["verdict"] == "tie" and r["margins"]["settled"] is None
+
+
+@pytest.mark.slow
+def test_quick_run_with_the_real_records_diagnoses_the_sma_branches(tmp_path, real_data):
+    """With the real records present, the quick run also diagnoses the measured SMA reversal branches and reports
+    their held-out e_r against the 5 % target."""
+    out = _run_paper(tmp_path, "--real-data", str(real_data))
+    paper = json.loads((out / "paper.json").read_text())
+    rows = {r["file"]: r for r in paper["diagnosis"]["rows"]}
+    assert paper["diagnosis"]["real_data_present"] and "sma_wing_forc_train" in rows
+    row = rows["sma_wing_forc_train"]
+    diag = json.loads((out / row["folder"] / "diagnosis.json").read_text())
+    assert diag["selected"] == row["selected"]
+    assert "Real SMA reversal branches: held-out e_r" in (out / "report.md").read_text()

@@ -35,7 +35,11 @@ def test_fit_stores_effective_range_of_the_saved_model(tmp_path):
     from smafl_jax.report import fit_record
 
     rec = sj.load_record(DATASETS / "main_loop.csv")
-    model, doc, (train, _, _) = fit_record(rec, model="cascade", max_steps=0, refit=False)
+    # one start candidate (the screening itself is tested in test_auto_fit): this test is about the stored ranges
+    model, doc, (train, _, _) = fit_record(
+        rec, model="cascade", max_steps=0, refit=False, orientation="rises", sees="voltage", thermal_start="steady",
+        memory="descended",
+    )  # fmt: skip
     x = np.asarray(model.hysteresis_input(rec.u, rec.dt))
     assert doc["data"]["effective_input_range"] == pytest.approx([x[train].min(), x[train].max()], rel=1e-12)
     assert doc["data"]["input_range"] == pytest.approx([rec.u[train].min(), rec.u[train].max()], rel=1e-12)

@@ -722,7 +722,13 @@ def section_diagnosis(recs, out, quick, real):
         skipped.append("the bundled drives with an undeclared effect (creep)")
         if water.exists():
             skipped.append(f"the real NiTi water-bath record {water.name}")
-    return {"rows": rows, "real_data_present": forc.exists(), "skipped": skipped, "n_null": 4 if quick else 10}
+    return {
+        "rows": rows,
+        "real_data_present": forc.exists(),
+        "real_data_dir": str(real),
+        "skipped": skipped,
+        "n_null": 4 if quick else 10,
+    }
 
 
 def _write_diagnosis(rep, s6):
@@ -771,7 +777,8 @@ def _write_diagnosis(rep, s6):
         )
     if not s6["real_data_present"]:
         rep.text(
-            "The real measured records (../shared/data/real) were not found beside the repository, so only the bundled record was diagnosed."
+            f"The real measured records were not found (looked for {s6.get('real_data_dir', '../shared/data/real')}/"
+            "sma_wing_forc_train.csv; `--real-data FOLDER` names another folder), so only the bundled record was diagnosed."
         )
 
 

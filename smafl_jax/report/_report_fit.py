@@ -142,6 +142,21 @@ def fit_record(
             progress=progress,
         )
         init = None  # the screened start is already profiled
+        choice = screen_info.get("structure_choice")
+        if choice and any(c["sees"] is not None or c["memory"] is not None for c in choice["scores"]):
+            notes.append(
+                "start screening: "
+                + ", ".join(
+                    f"{k} {v}"
+                    for k, v in (("hysteresis sees", choice["chosen"]["sees"]), ("memory rule", choice["chosen"]["memory"]))
+                    if v
+                )
+                + f", chosen on {choice['on']} ("
+                + ", ".join(
+                    " ".join(str(x) for x in (c["sees"], c["memory"]) if x) + f" {c['score']:.4g}" for c in choice["scores"]
+                )
+                + ")"
+            )
 
     def refine(start):
         spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
