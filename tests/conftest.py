@@ -3,6 +3,11 @@
 import os
 from pathlib import Path
 
+# One BLAS thread per test process, set before numpy loads OpenBLAS: `pytest -n 2` runs two processes on the two
+# cores, and two busy-waiting OpenBLAS thread pools each the size of the machine doubled the BLAS-heavy diagnosis
+# tests (measured: test_diagnose's calibrated-rule test 82 s -> 174 s in the suite without it).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 import jax
 import pytest
 

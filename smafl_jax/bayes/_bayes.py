@@ -784,7 +784,10 @@ def run_sampler(
         if state is None:
             state = sampler.get_last_sample()
         last = time.monotonic()
-        kwargs = {"progress": progress, "progress_kwargs": {"desc": "sampling", "file": sys.stderr}} if progress else {}
+        # a bar redrawn 25 times a second is one endless line in a log file (a batch job's stderr): off a terminal,
+        # at most one update every 30 s
+        bar = {"desc": "sampling", "file": sys.stderr, **({} if sys.stderr.isatty() else {"mininterval": 30.0})}
+        kwargs = {"progress": progress, "progress_kwargs": bar} if progress else {}
         for i, _ in enumerate(sampler.sample(state, iterations=remaining, **kwargs)):
             # here the step is saved and the file closed: safe to copy
             if path is not None and (time.monotonic() - last >= checkpoint_s):
