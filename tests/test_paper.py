@@ -41,9 +41,14 @@ def paper_run(tmp_path_factory):
     return _run_paper(work, "--real-data", str(work / "no_real_data"))
 
 
-@pytest.mark.xdist_group("paper_run")
-def test_report_files_and_figures_exist(paper_run):
-    out = paper_run
+def test_quick_report_files_figures_and_numbers(paper_run):
+    # one test on the one paper run: with `pytest -n 2` two tests of this module may land on two workers, and a
+    # module fixture then runs once per worker (the paper run is the suite's costliest item)
+    _report_files_and_figures_exist(paper_run)
+    _numbers_are_finite_and_consistent_with_output_files(paper_run)
+
+
+def _report_files_and_figures_exist(out):
     md = (out / "report.md").read_text()
     html = (out / "report.html").read_text()
     figs = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
@@ -57,9 +62,7 @@ def test_report_files_and_figures_exist(paper_run):
         assert (out / key).is_file(), key
 
 
-@pytest.mark.xdist_group("paper_run")
-def test_numbers_are_finite_and_consistent_with_output_files(paper_run):
-    out = paper_run
+def _numbers_are_finite_and_consistent_with_output_files(out):
     paper = json.loads((out / "paper.json").read_text())
     fit = json.loads((out / "fit.json").read_text())
     control = json.loads((out / "control_metrics.json").read_text())
