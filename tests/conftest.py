@@ -9,9 +9,9 @@ import scipy.linalg  # noqa: F401  (loads scipy's own OpenBLAS copy, so that the
 from threadpoolctl import threadpool_limits
 
 # One BLAS thread per test process: `pytest -n 2` runs two processes on the two cores, and two busy-waiting OpenBLAS
-# pools each the size of the machine slowed the BLAS-heavy diagnosis tests (test_diagnose's calibrated-rule test
-# 82 s with OPENBLAS_NUM_THREADS=1, 97-174 s without).  Set through threadpoolctl because a pytest plugin has
-# already loaded numpy (and OpenBLAS) when this file runs, so the environment variable would come too late.
+# pools each the size of the machine compete for them (the timings in .notes/session12_note.md were taken with one
+# thread).  Set through threadpoolctl because a pytest plugin has already loaded numpy (and OpenBLAS) when this file
+# runs, so the environment variable would come too late.
 BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 
 jax.config.update("jax_enable_x64", True)
