@@ -223,6 +223,9 @@ def test_cli_fit_preisach_then_control_sweep_and_sample(tmp_path, datasets_dir, 
     assert main(["control", *loop, "--out", str(tmp_path / "c")]) == 0
     metrics = json.loads((tmp_path / "c" / "metrics.json").read_text())
     assert np.isfinite(metrics["e_mean_mm"]) and metrics["settings"]["compensator_forward_model"] == "static Preisach"
+    # the fit's training range travels with the plant, so the control drive is checked against it
+    assert metrics["settings"]["plant_fitted_ranges"]["input_range"] == doc["data"]["input_range"]
+    assert metrics["range_checks"][0]["checked"]
     assert main(["sweep", *loop, "--x", "kp=0.2:1:2", "--y", "K=0,2", "--out", str(tmp_path / "sw")]) == 0
     assert (tmp_path / "sw" / "sweep.csv").exists()
     capsys.readouterr()

@@ -229,6 +229,7 @@ def test_cli_errors_name_the_flags(tmp_path, capsys):
 # -- the user's path from a fit ---------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # ~12 s; test_hysteresis_protocol.py runs the same fit -> control path (and sweep, sample) by default
 def test_cli_fit_preisach_then_control(tmp_path, capsys):
     record = _short_record(tmp_path / "rec.csv", "main_loop.csv", 400)
     fit_dir = tmp_path / "fit"

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model
+from ..models._range import EFFECTIVE_RULE, effective_values, value_range
 from ._provenance import record_data, versions
 from ._reportdoc import axis_label, unit_of
 
@@ -18,7 +19,26 @@ if TYPE_CHECKING:
 __all__ = ["write_diagnosis", "versions"]
 
 
-def _fit_doc(rec, res, which, deployed=False):
+def _trained_range(rec, split, model, deployed):
+    """``data`` entries of a saved model: the input range it was fitted on (and, for a model with a thermal stage, the
+    range of its hysteresis input), so that `smafl simulate` / `control` / `sweep` check a new drive against them."""
+    if deployed:
+        segs, rule = (
+            [(np.asarray(rec.u, float), np.ones(len(rec), bool))],
+            "min and max of the input over the whole record (refitted on it)",
+        )
+    else:
+        segs = [(np.asarray(s.u, float), np.asarray(s.mask, bool)) for s in split.train]
+        rule = "min and max of the input over the training samples of the split"
+    out = {"input_range": value_range(np.concatenate([u[m] for u, m in segs])), "input_range_rule": rule}
+    xs = [effective_values(model, u, rec.dt) for u, _ in segs]
+    if all(x is not None and np.all(np.isfinite(x)) for x in xs):
+        out["effective_input_range"] = value_range(np.concatenate([x[m] for x, (_, m) in zip(xs, segs)]))
+        out["effective_input_range_rule"] = EFFECTIVE_RULE
+    return out
+
+
+def _fit_doc(rec, res, which, split, model, deployed=False):
     part = res["base"] if which == "base" else res["extended"]
     extra = {}
     if deployed:
@@ -35,7 +55,7 @@ def _fit_doc(rec, res, which, deployed=False):
         "metrics": {"train": part["train"], "validation": part["heldout"]},
         **extra,
         # the record's provenance as in fit.json; an in-memory record keeps its name as "file"
-        "data": {**record_data(rec), **({} if rec.path else {"file": rec.name})},
+        "data": {**record_data(rec), **({} if rec.path else {"file": rec.name}), **_trained_range(rec, split, model, deployed)},
         "settings": {
             "command": "diagnose",
             "split": res["split"],
@@ -201,14 +221,22 @@ def write_diagnosis(out: Path, rec: Record, diagnosis: Diagnosis) -> None:
     res, base, ext, split = diagnosis.report, diagnosis.base, diagnosis.extended, diagnosis.split
     atomic_write_json(out / "diagnosis.json", diagnosis.to_json_dict())
     if diagnosis.deployed_extended is None:  # diagnose(refit=False): the split fits are the outputs
-        save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base"))
-        save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended"))
+        save_model(out / "base_fit.json", base, **_fit_doc(rec, res, "base", split, base))
+        save_model(out / "extended_fit.json", ext, **_fit_doc(rec, res, "extended", split, ext))
     else:
         # *_fit.json: refitted on the whole record, for predicting new data; *_fit_train.json: the split fits that were scored
-        save_model(out / "base_fit.json", diagnosis.deployed_base, **_fit_doc(rec, res, "base", deployed=True))
-        save_model(out / "extended_fit.json", diagnosis.deployed_extended, **_fit_doc(rec, res, "extended", deployed=True))
-        save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base"))
-        save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended"))
+        save_model(
+            out / "base_fit.json",
+            diagnosis.deployed_base,
+            **_fit_doc(rec, res, "base", split, diagnosis.deployed_base, deployed=True),
+        )
+        save_model(
+            out / "extended_fit.json",
+            diagnosis.deployed_extended,
+            **_fit_doc(rec, res, "extended", split, diagnosis.deployed_extended, deployed=True),
+        )
+        save_model(out / "base_fit_train.json", base, **_fit_doc(rec, res, "base", split, base))
+        save_model(out / "extended_fit_train.json", ext, **_fit_doc(rec, res, "extended", split, ext))
     # the base (and the extended model when nothing was selected: then it is the base) runs in the (empty) effect
     # wrapper, as it was scored; an extended model and a base replacement (Preisach) run as they are
     wrap = lambda m: ExtendedModel(m, ()) if m is base else m
