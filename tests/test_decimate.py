@@ -36,7 +36,9 @@ def test_block_rms_view_keeps_the_thermal_state_of_a_fast_pwm():
 
 def test_stride_rule():
     assert fit_stride(9_000, 0.01) == 1  # short records at full rate
-    assert fit_stride(120_000, 0.01) == 20  # 20 min at 100 Hz -> 6000 samples at 0.2 s
+    assert fit_stride(120_000, 0.01) == 5  # 20 min at 100 Hz: stride capped at 5 (24 000 samples at 0.05 s)
+    assert fit_stride(30_000, 0.04) == 5  # 20 min at 25 Hz -> 6000 samples at 0.2 s
+    assert fit_stride(45_000, 0.02) == 5  # 15 min at 50 Hz: 8 by the target length, capped
     assert fit_stride(120_000, 0.1) == 2  # capped by the longest view sample time (0.25 s)
     assert fit_stride(120_000, 0.3) == 1
 

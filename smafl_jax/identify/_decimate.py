@@ -3,8 +3,9 @@
 The fit of a voltage-driven model scans the whole record hundreds of times (start screening, the
 (k1, u0) search, LM Jacobians), so its cost grows with the sample count, while what it identifies
 does not: the thermal time constants of these actuators are 10-100 s and the hysteresis sees the
-slow thermal state.  A 20-minute record at 100 Hz (120 000 samples) therefore carries no more
-information about the model than the same record at a few Hz, if the drive is decimated the right way:
+slow thermal state.  A 20-minute record at 100 Hz (120 000 samples) is therefore fitted at a few
+Hz, the drive decimated the right way (the output samples dropped between block ends do cost
+precision: hence `MAX_STRIDE`):
 
 - the drive of block ``j`` (``stride`` samples) becomes the RMS of the block, because the thermal
   state integrates ``U^2`` (Joule heat): the heat delivered per block is exact, the state at the block
@@ -31,13 +32,19 @@ DECIMATE_ABOVE = 20_000
 TARGET_SAMPLES = 6_000
 #: Longest sample time of the view (s): keeps ``k1 * dt`` small for fast actuators (k1 up to ~1 1/s).
 MAX_VIEW_DT = 0.25
+#: Largest decimation factor.  The view keeps one output sample per block, so a larger stride throws away output
+#: samples (and the noise averaging they give), not only redundant drive samples.  Measured on independent 10-minute
+#: 100 Hz records (60 000 samples; commands in .notes/session14_note.md): held-out RMSE / noise
+#: at stride 10 -> 5: multisine cold s13 3.36 -> 1.25, PWM cold s17 2.63 -> 1.93, PWM cold s7 17.0 -> 11.6, three
+#: records unchanged (PWM s13 1.01, multisine s11 1.14 -> 1.16, warm multisine s19 1.02); the fit took 1.1-1.7x as long.
+MAX_STRIDE = 5
 
 
 def fit_stride(n: int, dt: float) -> int:
     """Decimation factor for a record of ``n`` samples at ``dt`` (1 = fit at full rate)."""
     if n <= DECIMATE_ABOVE:
         return 1
-    return max(1, min(int(np.ceil(n / TARGET_SAMPLES)), int(np.floor(MAX_VIEW_DT / dt))))
+    return max(1, min(int(np.ceil(n / TARGET_SAMPLES)), int(np.floor(MAX_VIEW_DT / dt)), MAX_STRIDE))
 
 
 def decimate_record(record, stride: int):
@@ -77,7 +84,7 @@ def fit_view(record, model, masks):
         "sample_time_s": float(view.dt),
         "rule": (
             f"records longer than {DECIMATE_ABOVE} samples with a Joule thermal part are fitted on a view of about "
-            f"{TARGET_SAMPLES} samples (sample time <= {MAX_VIEW_DT} s): block-RMS drive (exact heat per block), block-end "
+            f"{TARGET_SAMPLES} samples (sample time <= {MAX_VIEW_DT} s, stride <= {MAX_STRIDE}): block-RMS drive (exact heat per block), block-end "
             "output; metrics are computed at the record's own rate"
         ),
     }
