@@ -84,7 +84,8 @@ def fit_view(record, model, masks):
         "sample_time_s": float(view.dt),
         "rule": (
             f"records longer than {DECIMATE_ABOVE} samples with a Joule thermal part are fitted on a view of about "
-            f"{TARGET_SAMPLES} samples (sample time <= {MAX_VIEW_DT} s, stride <= {MAX_STRIDE}): block-RMS drive (exact heat per block), block-end "
+            f"{TARGET_SAMPLES} samples (sample time <= {MAX_VIEW_DT} s; stride <= {MAX_STRIDE}, so longer views of long "
+            "high-rate records): block-RMS drive (exact heat per block), block-end "
             "output; metrics are computed at the record's own rate"
         ),
     }
