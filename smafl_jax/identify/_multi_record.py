@@ -34,6 +34,7 @@ import numpy as np
 
 from .._errors import UserInputError
 from .._progress import say as progress_line
+from ..models._range import value_range
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._metrics import metrics
@@ -104,9 +105,9 @@ def data_checks_markdown(dc: dict | None) -> list[str]:
 
 
 def _input_range(records, masks=None) -> list[float]:
+    """`value_range` of the input over several records (each over its mask when given)."""
     masks = masks or [None] * len(records)
-    u = np.concatenate([np.asarray(r.u)[m] if m is not None else np.asarray(r.u) for r, m in zip(records, masks)])
-    return [float(np.min(u)), float(np.max(u))]
+    return value_range(np.concatenate([np.asarray(r.u)[m] if m is not None else np.asarray(r.u) for r, m in zip(records, masks)]))
 
 
 def add_record_extras(doc: dict, record, train: np.ndarray, val: np.ndarray, yhat: np.ndarray) -> dict:
