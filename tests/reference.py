@@ -28,7 +28,8 @@ def eupi_loop(m, u):
         Fa = play_loop(s, r_asym, a, y0a)
         out = out + Fa @ w[i]
     for j, c in enumerate(np.asarray(m.poly, float)):
-        out = out + c * s ** (j + 2)
+        n = j + 2  # s^n on the model's range [0, 1], continued with value and slope outside it
+        out = out + c * np.array([sk**n if 0.0 <= sk <= 1.0 else (1.0 + n * (sk - 1.0) if sk > 1.0 else 0.0) for sk in s])
     return out + float(m.offset)
 
 

@@ -208,3 +208,29 @@ def test_simulate_value_checks_under_jit(rng):
     with pytest.raises(eqx.EquinoxRuntimeError, match="NaN or inf"):
         sj.simulate_batch(casc, np.stack([u, bad]), 0.5)
     assert np.all(np.isfinite(np.asarray(sj.simulate(casc, u, 0.5))))
+
+
+def test_eupi_polynomial_continues_linearly_outside_its_range(rng):
+    """Beyond the input range the model was built on, the polynomial goes on with its end value and slope (no cubic
+    blow-up on a new run that leaves the fitted range); inside, it is the paper's powers.  Checked against the numpy
+    reference on a record that leaves [0, 7.4] on both sides, in all three evaluation paths (simulate, features @
+    weights, the per-sample step), and for value and slope continuity at both ends."""
+    m = random_eupi(rng)
+    u = np.concatenate([random_reversals(rng, 300), np.linspace(7.0, 12.0, 50), np.linspace(12.0, -3.0, 80)])
+    want = eupi_loop(m, u)
+    assert np.max(np.abs(np.asarray(sj.simulate(m, u)) - want)) < 1e-12
+    assert np.max(np.abs(np.asarray(m.features(u) @ m.linear_weights()) - want)) < 1e-12
+    _, ys = jax.lax.scan(lambda c, x: m.step(c, x), m.initial_state(u[0]), jnp.asarray(u))
+    assert np.max(np.abs(np.asarray(ys) - want)) < 1e-12
+    # far outside, the polynomial part grows linearly, not cubically: its value at 10x the span is a few poly units
+    from smafl_jax.models._eupi import poly_columns  # private: the column rule itself
+
+    s = jnp.asarray([-1e-7, 0.0, 1e-7, 1.0 - 1e-7, 1.0, 1.0 + 1e-7, 10.0])
+    cols = np.asarray(poly_columns(s, 3))
+    np.testing.assert_allclose(cols[6], [1 + 2 * 9.0, 1 + 3 * 9.0, 1 + 4 * 9.0])
+    # continuity of value and slope at both ends (slopes from one-sided differences)
+    np.testing.assert_allclose(cols[0], cols[1], atol=1e-12)
+    np.testing.assert_allclose((cols[5] - cols[4]) / 1e-7, (cols[4] - cols[3]) / 1e-7, rtol=1e-5)
+    np.testing.assert_allclose((cols[5] - cols[4]) / 1e-7, [2.0, 3.0, 4.0], rtol=1e-5)
+    g = jax.grad(lambda x: jnp.sum(poly_columns(x, 3)))
+    assert np.isfinite(float(g(jnp.asarray(1.0)))) and float(g(jnp.asarray(2.0))) == pytest.approx(9.0)

@@ -40,7 +40,11 @@ def eupi_reference(m, u):
     ops = float(m.gain) * s + play_loop(s, r_sym, 1.0, y0(r_sym, 1.0)) @ np.asarray(m.v, float)
     for i, a in enumerate(alpha):
         ops = ops + play_loop(s, r_asym, a, y0(r_asym, a)) @ w[i]
-    poly = sum(c * s ** (j + 2) for j, c in enumerate(np.asarray(m.poly, float)))
+    # s^n on the model's range [0, 1], continued with its end value and slope outside it
+    poly = sum(
+        c * np.where(s > 1.0, 1.0 + (j + 2) * (s - 1.0), np.where(s < 0.0, 0.0, np.clip(s, 0.0, 1.0) ** (j + 2)))
+        for j, c in enumerate(np.asarray(m.poly, float))
+    )
     return m.orientation * ops + poly + float(m.offset)
 
 

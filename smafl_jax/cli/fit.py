@@ -35,8 +35,10 @@ def add_parser(sub):
         "--model",
         choices=MODELS,
         default="auto",
-        help="auto (cascade for a drive voltage, else eupi; thresholds and tilts trained), eupi (paper eq. 2), "
-        "cascade (thermal + EUPI), joule (eq. 7 lag), or any other registered hysteresis model (preisach); default auto",
+        help="auto (cascade for a drive voltage; any other input: every hysteresis class (eupi, preisach) fitted to one "
+        "record and the lower validation RMSE kept, eupi for several records; thresholds and tilts trained), eupi "
+        "(paper eq. 2), cascade (thermal + EUPI), joule (eq. 7 lag), or any other registered hysteresis model "
+        "(preisach); default auto",
     )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
     p.add_argument(
@@ -145,6 +147,8 @@ def run(args):
     )
     import math
 
+    if doc["settings"].get("structure_choice"):  # model auto compared classes: say which won and on what
+        print(doc["notes"][0], file=sys.stderr)
     train_rmse = doc["metrics"]["train"].get("rmse")
     if train_rmse is None or not math.isfinite(float(train_rmse)):  # never report a non-finite fit as a success
         raise UserInputError(f"{rec.path}: the fit has a non-finite training RMSE; nothing written (check the data's scale)")

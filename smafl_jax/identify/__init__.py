@@ -24,7 +24,15 @@ from ._baselines import (
     score,
     tau_grid,
 )
-from ._choose import COLD_FRACTION, START_FRACTIONS, auto_structure, fitted_memory_start, refine_thermal_start, screen_start
+from ._choose import (
+    COLD_FRACTION,
+    START_FRACTIONS,
+    auto_candidates,
+    auto_structure,
+    fitted_memory_start,
+    refine_thermal_start,
+    screen_start,
+)
 from ._decimate import decimate_mask, decimate_record, fit_stride
 from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
 from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, rmse
@@ -60,6 +68,7 @@ __all__ = [
     "default_trainable",
     "as_fit_data",
     "SOLVERS",
+    "auto_candidates",
     "auto_structure",
     "screen_start",
     "refine_thermal_start",

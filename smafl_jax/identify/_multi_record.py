@@ -252,8 +252,30 @@ def fit_records(
     validates by LORO when there are two or more records, ``split="none"``
     skips it (no held-out error, ``len(records)`` fewer refits).  ``doc`` is
     the fit.json content; ``details`` holds the per-record simulations for the
-    figures (``yhat``: joint model, ``yhat_loro``: fold model with the record held out).
+    figures (``yhat``: joint model, ``yhat_loro``: fold model with the record held out).  ``model="auto"`` with
+    leave-one-record-out on a directly measured input fits every registered hysteresis class and keeps the lowest
+    mean held-out RMSE (`smafl_jax.report.choose_structure`; fit.json ``settings.structure_choice``).
     """
+    from ..report._report_fit import choose_structure
+
+    records = [records] if hasattr(records, "u") else list(records)
+    if model != "auto" or len(records) < 2 or fit_record_kwargs.get("split", "auto") == "none":
+        # nothing to compare classes on without leave-one-record-out: "auto" is then `auto_structure`'s class
+        return _fit_records_structure(records, model=model, progress=progress, **fit_record_kwargs)
+    # model auto: a directly measured input compares the hysteresis classes on the leave-one-record-out mean
+    return choose_structure(
+        records[0],
+        lambda name, opts: _fit_records_structure(records, model=name, progress=progress, **opts),
+        fit_record_kwargs,
+        progress,
+        validation="leave-one-record-out mean",
+    )
+
+
+def _fit_records_structure(
+    records: Any, *, model: str = "auto", progress: bool = False, **fit_record_kwargs: Any
+) -> tuple[Any, dict[str, Any], dict[str, Any]]:
+    """`fit_records` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names)."""
     from ..models._hysteresis import thermal_of
     from ..report._provenance import fit_header, versions
     from ..report._report_fit import K2_NOTE

@@ -6,7 +6,7 @@ from .._choices import HYSTERESIS
 from ._plots_bayes import corner_figure, parameter_label, predictive_loop_figure, predictive_time_figure, trace_figure
 from ._provenance import PACKAGES, fit_header, record_data, versions
 from ._report import write_diagnosis
-from ._report_fit import K2_NOTE, MODELS, build_model, fit_record, write_fit_outputs
+from ._report_fit import K2_NOTE, MODELS, build_model, choose_structure, fit_record, write_fit_outputs
 from ._reportdoc import Report, axis_label, fmt, unit_of
 
 __all__ = [
@@ -17,6 +17,7 @@ __all__ = [
     "write_diagnosis",
     "MODELS",
     "build_model",
+    "choose_structure",
     "fit_record",
     "write_fit_outputs",
     "Report",

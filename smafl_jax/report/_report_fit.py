@@ -16,7 +16,7 @@ import numpy as np
 from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
 from .._progress import say
-from ..identify._choose import auto_structure, fitted_memory_start, screen_start
+from ..identify._choose import auto_candidates, auto_structure, fitted_memory_start, screen_start
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._metrics import metrics
@@ -30,7 +30,7 @@ from ..models._simulate import simulate
 from ..models._thermal import JouleThermal
 from ._provenance import fit_header, record_data, versions
 
-__all__ = ["MODELS", "build_model", "fit_record", "write_fit_outputs", "versions"]
+__all__ = ["MODELS", "build_model", "choose_structure", "fit_record", "write_fit_outputs", "versions"]
 
 from .._choices import HYSTERESIS, MODELS
 
@@ -85,7 +85,82 @@ def structure_start(model, record, thresholds, tilts, grid):
     return structure, thresholds, tilts, build_model(structure, record, **(grid or {})), notes
 
 
-def fit_record(
+def fit_record(record, *, model="auto", progress=False, **options):
+    """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content.
+
+    ``model="auto"`` picks the structure from the input (`auto_candidates`) and trains the play
+    thresholds and tilts too (``thresholds`` / ``tilts`` None = on for auto, off otherwise).  A directly
+    measured input gets every registered hysteresis class fitted, and the lowest validation RMSE chooses
+    (fit.json ``settings.structure_choice``, with each candidate's RMSE and e_r); a drive voltage gets the cascade.
+    For every structure with a hysteresis part the output orientation and, for a cascade, the thermal start state
+    are screened on the training samples (`screen_start`) before the joint refinement.  Options: see `_fit_structure`.
+    """
+    if record.y is None:
+        raise UserInputError(f"{record.path}: no output column to fit")
+    if model != "auto" or options.get("split") == "none":  # split none: no validation error to compare classes on
+        return _fit_structure(record, model=model, progress=progress, **options)
+    return choose_structure(
+        record, lambda name, opts: _fit_structure(record, model=name, progress=progress, **opts), options, progress
+    )
+
+
+def choose_structure(record, fit_one, options, progress, validation="validation"):
+    """``--model auto``: fit every structure of `auto_candidates` with ``fit_one(name, options) -> (model, doc, extra)``
+    and keep the lowest ``doc["metrics"]["validation"]`` RMSE; returns the winner's ``(model, doc, extra)`` with
+    ``settings.structure_choice`` (each candidate's validation RMSE and e_r, train RMSE, seconds) and a first note.
+
+    Shared by the one-record fit (``validation``: the split's validation samples) and the multi-record fit (the
+    leave-one-record-out mean).  One candidate: fitted as ``"auto"`` (its own notes say why); no validation
+    error (split none): the first candidate is kept and the table says so.
+    """
+    candidates, why = auto_candidates(record)
+    if len(candidates) == 1:
+        return fit_one("auto", options)
+    options = dict(options)
+    for k in ("thresholds", "tilts"):  # auto's defaults: trained (a class without those groups ignores them)
+        options[k] = True if options.get(k) is None else options[k]
+    runs = []
+    for name in candidates:
+        say(f"model auto: fitting {name} ({len(runs) + 1}/{len(candidates)} candidates)", progress)
+        t0 = time.perf_counter()
+        runs.append((name, *fit_one(name, options), time.perf_counter() - t0))
+    scored = [r for r in runs if r[2]["metrics"]["validation"] is not None]
+    if not scored:  # no validation error (split none): nothing to compare on; the first (default) class is kept
+        name, final, doc, extra, _ = runs[0]
+        how = f"no {validation} error to compare on: the first candidate is kept"
+    else:
+        name, final, doc, extra, _ = min(scored, key=lambda r: _rmse_or_inf(r[2]["metrics"]["validation"]))
+        how = f"lowest {validation} RMSE"
+    table = [
+        {
+            "structure": n,
+            "validation": d["metrics"]["validation"] and {k: d["metrics"]["validation"][k] for k in ("rmse", "e_r_percent")},
+            "train_rmse": d["metrics"]["train"]["rmse"],
+            "seconds": sec,
+        }
+        for n, _, d, _, sec in runs
+    ]
+    doc["settings"] = {**doc["settings"], "model": "auto", "structure_choice": {"candidates": table, "chosen": name, "on": how}}
+    doc["notes"] = [
+        f"model auto -> {name}: {why}; "
+        + ", ".join(
+            f"{t['structure']} {validation} RMSE {t['validation']['rmse']:.4g} (e_r {t['validation']['e_r_percent']:.3g} %)"
+            if t["validation"]
+            else f"{t['structure']} (no {validation} error)"
+            for t in table
+        )
+        + f" -> {name} ({how})",
+        *doc["notes"],
+    ]
+    return final, doc, extra
+
+
+def _rmse_or_inf(m):
+    v = float(m["rmse"])
+    return v if np.isfinite(v) else np.inf
+
+
+def _fit_structure(
     record,
     *,
     model="auto",
@@ -103,13 +178,7 @@ def fit_record(
     refit=True,
     progress=False,
 ):
-    """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content.
-
-    ``model="auto"`` picks the structure from the input (`auto_structure`) and trains the play
-    thresholds and tilts too (``thresholds`` / ``tilts`` None = on for auto, off otherwise).  For
-    every structure with a hysteresis part the output orientation and, for a cascade, the thermal start state
-    are screened on the training samples (`screen_start`) before the joint refinement.
-    """
+    """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names)."""
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
     if solver not in SOLVERS:
