@@ -14,6 +14,7 @@ import pytest
 
 import smafl_jax as sj
 from smafl_jax.identify import auto_candidates
+from smafl_jax.models import thermal_of
 from smafl_jax.report import HYSTERESIS, fit_record
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -84,3 +85,20 @@ def test_model_auto_on_several_records_compares_on_the_leave_one_record_out_mean
     # without leave-one-record-out there is nothing to compare on: no second fit
     _, doc1, _ = fit_records([a, b], max_steps=0, grid=SMALL, split="none")
     assert "structure_choice" not in doc1["settings"] and doc1["settings"]["structure"] == "eupi"
+
+
+def test_model_auto_on_a_quasi_static_voltage_record_compares_the_static_classes(tmp_path):
+    # a drive voltage sampled every 10 s (as the SMA wing reversal curves): the cascade's lag settles within a sample
+    r = indep_direct.make_record(4, "preisach", "steps", n=500, dt=10.0, u_lo=0.2, u_span=6.0)
+    path = tmp_path / "slow.csv"
+    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
+               comments="", fmt="%.9g")  # fmt: skip
+    rec = sj.load_record(path)
+    model, doc, _ = fit_record(rec, max_steps=0, grid=SMALL)
+    choice = doc["settings"]["structure_choice"]
+    rows = {c["structure"]: c["validation"]["rmse"] for c in choice["candidates"]}
+    assert list(rows) == ["cascade", *HYSTERESIS]
+    assert choice["chosen"] == min(rows, key=rows.get) == doc["settings"]["structure"]
+    assert "within one sample" in doc["notes"][0] and sum(n.startswith("model auto -> ") for n in doc["notes"]) == 1
+    assert doc["metrics"]["validation"]["rmse"] == pytest.approx(rows[choice["chosen"]], rel=1e-12)
+    assert (thermal_of(model) is not None) == (choice["chosen"] == "cascade")
