@@ -702,7 +702,7 @@ def test_cli_refuses_degenerate_records(tmp_path, capsys):
         assert msg in err and len(err.splitlines()) == 1 and "Traceback" not in err
 
 
-@pytest.mark.slow  # ~35 s; the screening it wraps is tested in test_auto_fit.py, and the CLI diagnosis test runs it
+@pytest.mark.slow  # ~35 s; the screening it wraps is tested in test_auto_fit.py, and the paper fixture's diagnosis (test_paper.py) runs it
 def test_screened_base_fits_a_length_sensor_and_a_cold_start(truth, drives):
     """The diagnosis base is screened like `smafl fit` (orientation, thermal start): a record whose output falls
     on contraction and that starts cold gets a base at the noise level, which the fixed start cannot reach."""
