@@ -131,10 +131,11 @@ class JouleThermal(eqx.Module):
     def effective_voltage(self, theta):
         return effective_voltage(theta, self.k1, self.k2)
 
-    def settles_within(self, dt: float) -> bool:
-        """True when the lag's time constant ``1 / k1`` is at most one sample ``dt``: such a record cannot show the lag
-        (quasi-static data), so a static hysteresis of the drive explains it as well as the cascade does."""
-        return float(self.k1) * float(dt) >= 1.0
+    def settles_within(self, dt: float, k1: float | None = None) -> bool:
+        """True when the lag's time constant ``1 / k1`` (this model's, or the rate given) is at most one sample ``dt``:
+        such a record cannot show the lag (quasi-static data), so a static hysteresis of the drive explains it as well
+        as the cascade does."""
+        return float(self.k1 if k1 is None else k1) * float(dt) >= 1.0
 
     def describe(self) -> list[str]:
         """The rates and the start state for a fit report (``report.md``), one line each."""

@@ -8,11 +8,9 @@ the measured output range *of that subset*.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from pathlib import Path
 
-import jax.numpy as jnp
 import numpy as np
 
 from .._errors import UserInputError
@@ -125,8 +123,8 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         # the profiled k1 (gains solved at each rate) or the refined one: the refinement can trade a lag for hysteresis
         # memory on a record that has no lag to show (measured: SMA wing, profiled k1 1.08 1/s, refined slower)
         k_prof = (alone[1].get("solver") or {}).get("profile_k1")
-        rates = [] if th is None else [th, *([dataclasses.replace(th, k1=jnp.asarray(float(k_prof)))] if k_prof else [])]
-        fast = [t for t in rates if t.settles_within(record.dt)]
+        rates = [] if th is None else [float(th.k1), *([float(k_prof)] if k_prof else [])]
+        fast = [k for k in rates if th.settles_within(record.dt, k)]
         if not fast:
             return alone
         # a thermal lag faster than one sample: the record is quasi-static, and the static hysteresis classes of the drive
@@ -134,7 +132,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         # a static Preisach of the voltage 0.127)
         runs.append((candidates[0], *alone, time.perf_counter() - t0))
         why += (
-            f"; its thermal time constant ({1.0 / float(fast[0].k1):.3g} s) is within one sample ({float(record.dt):.3g} s), "
+            f"; its thermal time constant ({1.0 / fast[0]:.3g} s) is within one sample ({float(record.dt):.3g} s), "
             "so the static hysteresis classes of the drive were fitted too and the held-out error chooses"
         )
         candidates = (candidates[0], *HYSTERESIS)
