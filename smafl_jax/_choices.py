@@ -16,3 +16,6 @@ SPLITS = ("auto", "time", "branch", "none")
 #: Operator-memory options of `smafl fit --memory`: "auto", "fitted", "rule" and the initial-state rules a fit
 #: screens (the union of the registered models' `AbstractHysteresis.RULE_INITS`; a test checks it).
 MEMORY = ("auto", "fitted", "rule", "descended", "zero", "from_top")
+#: kappa of the prior on the operator gains in `smafl fit` / `fit_record` / `fit_records` (`smafl_jax.identify._gain_prior`):
+#: one operator is expected to move the output by at most about the output's own observed range.
+GAIN_PRIOR = 1.0

@@ -307,6 +307,10 @@ def test_fit_without_validation_split_warns_nothing():
         warnings.simplefilter("error", RuntimeWarning)
         _, doc, _ = fit_record(rec, split="none", model="eupi", max_steps=0)
     assert doc["metrics"]["validation"] is None
+    # the default gain prior is applied and recorded (`smafl_jax.identify._gain_prior`)
+    assert doc["settings"]["gain_prior"] == 1.0
+    gp = doc["solver"]["gain_prior"]
+    assert gp["kappa"] == 1.0 and gp["rmse"] >= gp["rmse_free"] * (1 - 1e-9)
 
 
 def test_an_undecided_orientation_is_refined_both_ways_and_the_whole_record_fit_decides(tmp_path):

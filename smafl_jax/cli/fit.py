@@ -10,6 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from .._choices import GAIN_PRIOR
+
 
 def add_parser(sub):
     from .._choices import MEMORY, MODELS, SOLVERS, SPLITS
@@ -94,6 +96,15 @@ def add_parser(sub):
         "rule (the best of the rules descended, zero and from_top on the training samples), or one of those rules, "
         "or auto (rule and fitted both refined, the validation samples choose)",
     )
+    p.add_argument(
+        "--gain-prior",
+        type=_gain_prior_arg,
+        default=GAIN_PRIOR,
+        metavar="KAPPA",
+        help=f"prior on each operator gain: N(0, (KAPPA x output range)^2), the gains are its MAP (default {GAIN_PRIOR:g}; "
+        "'none': plain least squares). Keeps near-constant operators from cancelling the offset with huge gains that "
+        "break on a new run",
+    )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")
     p.add_argument("--n-asym", type=int, default=4, help="thresholds per tilt (default 4)")
@@ -166,6 +177,20 @@ def run(args):
     return 0
 
 
+def _gain_prior_arg(text):
+    """``--gain-prior``: a number > 0, or none."""
+    import argparse
+
+    from ..identify._gain_prior import check_gain_prior
+
+    if text.strip().lower() == "none":
+        return None
+    try:
+        return check_gain_prior(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 def _model_options(args, grid):
     """The fit options one-record and several-record fits share."""
     return dict(
@@ -177,6 +202,7 @@ def _model_options(args, grid):
         orientation=args.orientation,
         thermal_start=args.thermal_start,
         sees=args.sees,
+        gain_prior=args.gain_prior,
         grid=grid,
         progress=True,
     )

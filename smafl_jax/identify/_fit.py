@@ -47,6 +47,7 @@ from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ..models._hysteresis import hysteresis_of, thermal_of
 from . import varpro
+from ._gain_prior import check_gain_prior, map_gains
 from .varpro import FIT_SOLVE
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
@@ -495,6 +496,7 @@ def fit(
     weights: Any = None,
     k1_grid: int | ArrayLike = 32,
     profile_xatol: float = 1e-7,
+    gain_prior: float | None = None,
     progress: bool = False,
 ) -> FitResult:
     """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
@@ -509,7 +511,40 @@ def fit(
     memory stays continuous).  ``trainable`` defaults to
     `default_trainable(model)`.  ``k1_grid`` / ``profile_xatol``: the profile's k1
     candidates and the tolerance of its 1-D refinement in ``log k1`` (`init_profile`).
+    ``gain_prior``: kappa of the prior on the operator gains (`smafl_jax.identify._gain_prior`: each operator gain
+    ~ N(0, (kappa x output range)^2)); the returned gains are then the MAP at the fitted nonlinear parameters
+    (``info["gain_prior"]`` says what it changed).  None (the default here): the least-squares gains.
     """
+    gain_prior = check_gain_prior(gain_prior)
+    res = _fit(
+        model, data, dt, solver=solver, trainable=trainable, init=init, max_steps=max_steps, rtol=rtol, atol=atol,
+        weights=weights, k1_grid=k1_grid, profile_xatol=profile_xatol, progress=progress,
+    )  # fmt: skip
+    if gain_prior is None:
+        return res
+    part = _linear_part(res.model)
+    if part is None or hysteresis_of(res.model) is None:  # no operator gains (a Joule lag): nothing for the prior
+        return res
+    feats, nonneg, setw = part
+    data = as_fit_data(data, dt)
+    blocks = [_features(feats, res.model, jnp.asarray(u), jnp.asarray(d)) for u, _, d in data]
+    if not all(np.all(np.isfinite(np.asarray(A))) for A in blocks):
+        return res
+    A, b = _stack_rows(blocks, data, _as_weights(weights, data))
+    theta, info = map_gains(A, b, nonneg, gain_prior)
+    say(
+        f"gain prior (kappa {gain_prior:g}): largest operator gain {info['largest_gain_free']:.4g} -> "
+        f"{info['largest_gain']:.4g}, training RMSE {info['rmse_free']:.4g} -> {info['rmse']:.4g}",
+        progress,
+    )
+    model = setw(res.model, jnp.asarray(theta))
+    return res._replace(model=model, loss=0.5 * float(len(b)) * info["rmse"] ** 2, info={**(res.info or {}), "gain_prior": info})
+
+
+def _fit(
+    model, data, dt=None, *, solver, trainable, init, max_steps, rtol, atol, weights, k1_grid, profile_xatol, progress
+) -> FitResult:
+    """`fit` without the gain prior."""
     release_if_needed()  # long sessions compile many programs: stay under the memory-map limit (`_compile_cache`)
     if init not in _INITS:
         raise UserInputError(f"init must be one of {_INITS}, got {init!r}")

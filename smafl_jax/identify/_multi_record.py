@@ -37,6 +37,7 @@ from .._progress import say as progress_line
 from ..models._range import value_range
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
+from ._gain_prior import GAIN_PRIOR
 from ._metrics import metrics
 
 __all__ = ["fit_records", "write_records_outputs", "data_checks_doc", "data_checks_markdown", "add_record_extras"]
@@ -64,6 +65,7 @@ FIT_OPTIONS = (
     "orientation",
     "thermal_start",
     "sees",
+    "gain_prior",
 )
 
 
@@ -139,7 +141,10 @@ def _combined(records):
     )
 
 
-def _joint_fit(records, *, model, solver, max_steps, thresholds, tilts, grid, orientation, thermal_start, sees="auto", progress):
+def _joint_fit(
+    records, *, model, solver, max_steps, thresholds, tilts, grid, orientation, thermal_start, sees="auto", gain_prior=None,
+    progress,
+):  # fmt: skip
     """The model choice of `fit_record` on several records (all samples train); returns ``(FitResult, info)``."""
     from ..models._hysteresis import hysteresis_of
     from ..report._report_fit import structure_start
@@ -157,7 +162,15 @@ def _joint_fit(records, *, model, solver, max_steps, thresholds, tilts, grid, or
         init = None  # the screened start is already profiled
     spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
     res = fit(
-        start, list(records), solver=solver, trainable=spec, init=init, weights=weights, max_steps=max_steps, progress=progress
+        start,
+        list(records),
+        solver=solver,
+        trainable=spec,
+        init=init,
+        weights=weights,
+        max_steps=max_steps,
+        gain_prior=gain_prior,
+        progress=progress,
     )
     info = {
         "structure": structure,
@@ -295,6 +308,7 @@ def _fit_records_structure(
         "orientation": "auto",
         "thermal_start": "auto",
         "sees": "auto",
+        "gain_prior": GAIN_PRIOR,
     }
     opts.update(fit_record_kwargs)
     records = [records] if hasattr(records, "u") else list(records)
@@ -313,7 +327,8 @@ def _fit_records_structure(
     loro = opts["split"] == "auto" and len(records) >= 2
     names = _unique_names(records)
     say = progress_line if progress else log.info
-    fit_kw = {k: opts[k] for k in ("solver", "max_steps", "thresholds", "tilts", "grid", "orientation", "thermal_start", "sees")}
+    keys = ("solver", "max_steps", "thresholds", "tilts", "grid", "orientation", "thermal_start", "sees", "gain_prior")
+    fit_kw = {k: opts[k] for k in keys}
     squared = is_voltage(records[0].input_name, records[0].units)
     t_all = time.perf_counter()
 
@@ -466,6 +481,7 @@ def _fit_records_structure(
             "max_steps": opts["max_steps"],
             "train_thresholds": info["thresholds"],
             "train_tilts": info["tilts"],
+            "gain_prior": opts["gain_prior"],
             "grid": opts["grid"] or {},
             "init": (res.info or {}).get("init"),
         },
@@ -479,6 +495,7 @@ def _fit_records_structure(
             "seconds": seconds,
             "total_seconds_with_folds": time.perf_counter() - t_all,
             "profile_k1": info["profile"].get("k1"),
+            "gain_prior": (res.info or {}).get("gain_prior"),
         },
         "notes": notes,
         "versions": versions(),

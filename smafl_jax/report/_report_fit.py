@@ -19,6 +19,7 @@ from .._progress import say
 from ..identify._choose import auto_candidates, auto_structure, fitted_memory_start, screen_start
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
+from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
 from ..identify._metrics import metrics
 from ..identify._split import split_masks
 from ..models._cascade import Cascade
@@ -195,6 +196,7 @@ def _fit_structure(
     sees="auto",
     memory="auto",
     refit=True,
+    gain_prior=GAIN_PRIOR,
     progress=False,
 ):
     """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names)."""
@@ -202,6 +204,7 @@ def _fit_structure(
         raise UserInputError(f"{record.path}: no output column to fit")
     if solver not in SOLVERS:
         raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    gain_prior = check_gain_prior(gain_prior)
     structure, thresholds, tilts, start, notes = structure_start(model, record, thresholds, tilts, grid)
     train, val, split_info = split_masks(record, split, val_fraction=val_fraction)
     # long Joule-driven records are fitted on a block-RMS view (see _decimate); metrics stay at the full rate
@@ -250,10 +253,12 @@ def _fit_structure(
         spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
         res = fit(
             start, rec, solver=solver, trainable=spec, init=init, weights=[tr.astype(float)], max_steps=max_steps,
-            progress=progress,
+            gain_prior=gain_prior, progress=progress,
         )  # fmt: skip
         yhat = np.asarray(simulate(res.model, rec.u, rec.dt))
         if init is None and va.any() and res.n_steps > 0:
+            if gain_prior is not None:  # the start compared with the same prior on its gains
+                start = fit(start, rec, solver=None, init=None, weights=[tr.astype(float)], gain_prior=gain_prior).model
             # The joint refinement can buy training error with shapes that do not carry to new data
             # (measured on independent records: train 1.3x -> 1.0x noise, held-out 4x -> 15x). Keep it
             # only if it does not worsen the held-out error of the screened start.
@@ -305,10 +310,10 @@ def _fit_structure(
         """The split fit's choices refitted on every sample (polished at the full rate after a view fit)."""
         final = _refit_whole(
             rec, structure, pick[1].model, grid, thermal_start, pick[3], solver, max_steps, thresholds, tilts, progress,
-            pick[0],
+            pick[0], gain_prior,
         )  # fmt: skip
         if view_info and max_steps > 0:
-            final = _polish(final, record, np.ones(len(record), bool), solver, thresholds, tilts, progress)
+            final = _polish(final, record, np.ones(len(record), bool), solver, thresholds, tilts, progress, gain_prior)
         return final
 
     finals = {}
@@ -342,7 +347,7 @@ def _fit_structure(
     if note:
         notes.append(note)
     if view_info and max_steps > 0:
-        res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress))
+        res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress, gain_prior))
     yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
     seconds = time.perf_counter() - t0
     if not np.all(np.isfinite(yhat)):
@@ -371,6 +376,15 @@ def _fit_structure(
                 f"the best k1 ({prof.get('k1'):.4g} 1/s) lies at the edge of the candidate grid: the record does not "
                 "pin down the thermal time constant (e.g. quasi-static data)"
             )
+    gp = (res.info or {}).get("gain_prior")
+    if gp and gp["largest_gain"] < 0.5 * gp["largest_gain_free"]:
+        # worth saying: the prior changed what a user will see on a new run (`smafl_jax.identify._gain_prior`)
+        notes.append(
+            f"gain prior (kappa {gp['kappa']:g}, --gain-prior): largest operator gain {gp['largest_gain_free']:.4g} -> "
+            f"{gp['largest_gain']:.4g} against an output range of {gp['output_range']:.4g} (training RMSE "
+            f"{gp['rmse_free']:.4g} -> {gp['rmse']:.4g}): gains far beyond the output range that cancel the offset "
+            "break on a new run; --gain-prior none keeps the least-squares gains"
+        )
     if not res.converged:
         notes.append(f"solver: {res.message}")
     doc = {
@@ -397,6 +411,7 @@ def _fit_structure(
             "grid": grid or {},
             "init": (res.info or {}).get("init"),
             "fit_view": view_info,
+            "gain_prior": gain_prior,
         },
         "solver": {
             "name": res.solver,
@@ -408,6 +423,7 @@ def _fit_structure(
             "seconds": seconds,
             "refinement": refinement,
             "profile_k1": ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1"),
+            "gain_prior": (res.info or {}).get("gain_prior"),
         },
         "notes": notes,
         "versions": versions(),
@@ -427,7 +443,7 @@ def _fit_structure(
 POLISH_STEPS = 10
 
 
-def _polish(model, record, mask, solver, thresholds, tilts, progress):
+def _polish(model, record, mask, solver, thresholds, tilts, progress, gain_prior=None):
     """A few joint LM steps at the record's own rate from a model fitted on the decimated view.
 
     The view is exact for the heat per block, but a plant integrates its drive in its own way inside a
@@ -435,13 +451,28 @@ def _polish(model, record, mask, solver, thresholds, tilts, progress):
     on the view and 19x at the full rate, and 10 full-rate steps (5 s) brought it to 1.09x.
     """
     spec = default_trainable(model, thresholds=thresholds, tilts=tilts)
-    res = fit(model, record, solver=solver, trainable=spec, init=None, weights=[mask.astype(float)], max_steps=POLISH_STEPS)
+    res = fit(
+        model, record, solver=solver, trainable=spec, init=None, weights=[mask.astype(float)], max_steps=POLISH_STEPS,
+        gain_prior=gain_prior,
+    )  # fmt: skip
     say(f"full-rate polish of the view's fit: loss {res.init_loss:.6g} -> {res.loss:.6g} ({res.n_steps} steps)", progress)
     return res.model
 
 
 def _refit_whole(
-    record, structure, chosen, grid, thermal_start, refinement, solver, max_steps, thresholds, tilts, progress, memory="fitted"
+    record,
+    structure,
+    chosen,
+    grid,
+    thermal_start,
+    refinement,
+    solver,
+    max_steps,
+    thresholds,
+    tilts,
+    progress,
+    memory="fitted",
+    gain_prior=None,
 ):
     """The split fit's structure choices, refitted on every sample of the record."""
     say("refitting the chosen structure on the whole record", progress)
@@ -449,7 +480,10 @@ def _refit_whole(
     if refinement == "kept" and max_steps > 0:
         # warm start from the split's refined model: the whole-record optimum is close, LM needs few steps
         spec = default_trainable(chosen, thresholds=thresholds, tilts=tilts)
-        res = fit(chosen, record, solver=solver, trainable=spec, init=None, weights=ones, max_steps=max_steps, progress=progress)
+        res = fit(
+            chosen, record, solver=solver, trainable=spec, init=None, weights=ones, max_steps=max_steps,
+            gain_prior=gain_prior, progress=progress,
+        )  # fmt: skip
         return res.model
     e = chosen.hysteresis
     ones = [np.ones(len(record))]
@@ -469,8 +503,11 @@ def _refit_whole(
         # record: held-out 26x -> 18x noise against the profiled start alone)
         spec = default_trainable(start, thresholds=thresholds, tilts=tilts)
         start = fit(
-            start, record, solver=solver, trainable=spec, init=None, weights=ones, max_steps=max_steps, progress=progress
-        ).model
+            start, record, solver=solver, trainable=spec, init=None, weights=ones, max_steps=max_steps,
+            gain_prior=gain_prior, progress=progress,
+        ).model  # fmt: skip
+    elif gain_prior is not None:
+        start = fit(start, record, solver=None, init=None, weights=ones, gain_prior=gain_prior).model
     return start
 
 
