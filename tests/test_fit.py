@@ -263,3 +263,13 @@ def test_fit_data_accepts_two_records_and_is_idempotent(datasets_dir):
     assert len(sj.as_fit_data(tuple(recs))) == 2
     pair = sj.as_fit_data((recs[0].u, recs[0].y), dt=0.5)
     assert len(pair) == 1 and pair[0][2] == 0.5
+
+
+def test_fit_says_when_it_would_run_on_an_accelerator(monkeypatch):
+    import jax
+
+    from smafl_jax.cli.fit import _accelerator_note  # private: the CLI's note on the JAX backend
+
+    assert _accelerator_note() is None  # the suite runs on the CPU
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert "JAX_PLATFORMS=cpu" in _accelerator_note()

@@ -129,6 +129,9 @@ def run(args):
     if args.poly_order < 1:
         raise UserInputError(f"--poly-order must be >= 1, got {args.poly_order}")
     records = load_records(args.data, args.input, args.output, resample=parse_resample(args.resample))
+    note = _accelerator_note()
+    if note:
+        print(note, file=sys.stderr)
     grid = dict(n_sym=args.n_sym, n_alpha=args.n_alpha, n_asym=args.n_asym, poly_order=args.poly_order)
     import numpy as np
 
@@ -175,6 +178,20 @@ def run(args):
     _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
     return 0
+
+
+def _accelerator_note():
+    """A line for a fit that would run on a GPU / TPU, else None: fitting records is a chain of sequential scans."""
+    import jax
+
+    backend = jax.default_backend()
+    if backend == "cpu":
+        return None
+    return (
+        f"note: JAX runs on '{backend}' here; fitting is a chain of sequential scans, measured 100-200x slower on an "
+        "H100 than on a CPU for one record (17-22 us per scan step there; benchmarks/README.md, 'On a GPU'): "
+        "JAX_PLATFORMS=cpu smafl fit ... runs faster"
+    )
 
 
 def _gain_prior_arg(text):
