@@ -47,13 +47,7 @@ import indep_plant as ip  # noqa: E402
 import smafl_jax as sj  # noqa: E402
 from smafl_jax.report import fit_record  # noqa: E402
 
-CELLS = {
-    "multisine, cold, 25 Hz": dict(drive="multisine", rate_hz=25, start="cold"),
-    "PWM, cold, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold"),
-    "staircase, warm, 10 Hz": dict(drive="staircase", rate_hz=10, start="warm"),
-    "PWM, length sensor, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold", orientation="length"),
-    "multisine, half-warm, 10 Hz": dict(drive="multisine", rate_hz=10, start="mid"),
-}
+CELLS = dict(ip.MATRIX_CELLS)
 OPTS = json.loads(os.environ.get("SMAFL_FIT_OPTS", "{}"))
 CELLS = json.loads(os.environ["SMAFL_CELLS_JSON"]) if "SMAFL_CELLS_JSON" in os.environ else CELLS
 CELLS = {k: v for k, v in CELLS.items() if os.environ.get("SMAFL_CELLS", "") in k}

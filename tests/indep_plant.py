@@ -48,6 +48,15 @@ ORIENTATIONS = ("displacement", "length")
 NOISE_KINDS = ("fixed", "fraction")
 THERMAL_SCHEMES = ("zoh_current", "zoh_previous", "euler", "rk4")
 HYST_INPUTS = ("effective_voltage", "temperature")
+#: The cells of issue 18's robustness matrix (experiments/base_fit_before_after.py, matrix_branch_coverage.py):
+#: keywords of `make_record` by cell name.
+MATRIX_CELLS = {
+    "multisine, cold, 25 Hz": dict(drive="multisine", rate_hz=25, start="cold"),
+    "PWM, cold, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold"),
+    "staircase, warm, 10 Hz": dict(drive="staircase", rate_hz=10, start="warm"),
+    "PWM, length sensor, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold", orientation="length"),
+    "multisine, half-warm, 10 Hz": dict(drive="multisine", rate_hz=10, start="mid"),
+}
 MEMORY_KINDS = ("zero", "from_above", "random")
 HELDOUT_FRACTION = 0.3
 FIXED_NOISE_SD = 0.005  # mm

@@ -93,7 +93,8 @@ def test_auto_structure_from_the_input():
     assert auto_structure(rec)[0] == "eupi"
 
 
-@pytest.mark.parametrize(("orientation", "sign"), [("displacement", 1), ("length", -1)])
+# suite time: the displacement case (24 s) is slow; the length sensor, the harder one, stays in the default suite
+@pytest.mark.parametrize(("orientation", "sign"), [pytest.param("displacement", 1, marks=pytest.mark.slow), ("length", -1)])
 def test_screening_finds_the_sensor_orientation_on_independent_records(orientation, sign):
     r = indep_plant.make_record(11, drive="multisine", rate_hz=10, minutes=4, start="cold", orientation=orientation)
     h0 = r["heldout_start"]
@@ -313,6 +314,7 @@ def test_fit_without_validation_split_warns_nothing():
     assert gp["kappa"] == 1.0 and gp["rmse"] >= gp["rmse_free"] * (1 - 1e-9)
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 19 s; the orientation screening runs in the length-sensor and negation tests
 def test_an_undecided_orientation_is_refined_both_ways_and_the_whole_record_fit_decides(tmp_path):
     """Output with no relation to the input: both signs profile alike, so both are refined and refitted."""
     import re

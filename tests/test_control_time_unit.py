@@ -72,6 +72,7 @@ def test_e_mean_is_eq8_on_a_resting_plant(hyst):
     np.testing.assert_allclose(float(m["e_mean_mm"]), hand, rtol=1e-12)
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 9 s; batched vs single closed-loop runs are compared in test_control.py's sweep test
 def test_batch_matches_single_runs(ctu, hyst):
     configs = [
         dict(ts=0.02, thermal_unit="sample", ki_unit="second", K_unit="second", plant="eupi", gains="sim"),

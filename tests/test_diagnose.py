@@ -475,6 +475,7 @@ def _preisach_forc_record(dt, with_branch, seed=0):
     return Record.from_arrays(np.arange(u.size) * dt, u, y, input_name="voltage_V", output_name="displacement_mm", extra=extra)
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 41 s; the Preisach grid fit and its inner CV are tested in test_preisach.py
 def test_nonlocal_memory_selected_on_rate_free_preisach_record(tmp_path):
     from smafl_jax.report import write_diagnosis
 

@@ -205,6 +205,7 @@ def _short_record(tmp_path, datasets_dir, n=400):
     return path
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 27 s; the EUPI fit -> control -> sweep -> sample chain runs in test_workflows_cli.py
 def test_cli_fit_preisach_then_control_sweep_and_sample(tmp_path, datasets_dir, capsys):
     record = datasets_dir / "main_loop.csv"
     fit_dir = tmp_path / "fit"
@@ -250,6 +251,7 @@ def test_cli_sample_preisach_weights_explicitly(tmp_path, datasets_dir):
     assert names == [f"w[{i}]" for i in range(6)] + ["offset", "noise.sigma"]
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 17 s; `smafl sample` end to end runs in test_bayes.py
 def test_cli_sample_on_an_extended_fit(tmp_path, datasets_dir, capsys):
     rec = _short_record(tmp_path, datasets_dir, n=200)
     truth = sj.load_model(datasets_dir / "truth.json")

@@ -97,6 +97,7 @@ def test_ramp_relays_equal_crisp_on_cell_edges_and_are_continuous(rng):
     assert yr.max() < 0.05 * yc.max()
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 24 s; ramp relays vs a numpy loop run in test_ops.py, grid recovery below
 def test_ramp_relays_predict_between_training_levels(rng):
     """New reversal points and input steps off the training grid: crisp relays miss by a staircase, ramps interpolate."""
     truth = _smooth_truth(n=70)  # the 'rig': a fine smooth density
@@ -150,6 +151,7 @@ def _smooth_truth(n=12, linear=False):
     return m.with_linear_weights(jnp.asarray(np.concatenate([w, [0.5] if linear else [], [0.2]])))
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 13 s; grid recovery runs in the Everett and inner-CV tests
 def test_recovery_from_synthetic_forcs(rng):
     truth = _smooth_truth()
     sd = 0.01
@@ -174,6 +176,7 @@ def test_inner_cv_picks_the_true_grid(rng):
     assert info["n_inner_folds"] == len(segs) - 1 and 0 < info["dof"] <= model.n_relays + 1
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 22 s (one compilation per FORC length); Everett is a reference method on no default path, its input checks stay below
 def test_everett_reproduces_measured_forcs_and_recovers_the_grid():
     """FORCs with a reversal at every cell edge determine a Preisach grid exactly (Mayergoyz): Everett weights = the truth."""
     from smafl_jax.models import everett_weights, fit_everett
@@ -211,6 +214,7 @@ def test_everett_rejects_non_forc_segments():
         everett_weights([(np.r_[0.0, 1.0, 0.0], np.r_[0.0, 1.0, 0.0])] * 2, np.linspace(0.1, 0.9, 5), "cubic")
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 15 s; the inner CV runs in test_inner_cv_picks_the_true_grid, Everett below
 def test_inner_cv_criteria_and_everett_candidates(rng):
     truth = _smooth_truth(n=12)
     inputs = _forc_input([3.1, 2.9, 2.7, 2.5, 2.3, 2.1, 1.7])

@@ -444,7 +444,10 @@ def _voltage_record(rng, n=240):
     return smafl_jax.Record.from_arrays(DT * np.arange(n), u, y, input_name="voltage_V", output_name="displacement_mm")
 
 
-@pytest.mark.parametrize("name", [m for m in CHOICES if m != "auto"])
+# suite time: the cascade case (18 s) is slow; the other classes (a thermal one among them, for the K2 note) stay
+@pytest.mark.parametrize(
+    "name", [pytest.param(m, marks=pytest.mark.slow) if m == "cascade" else m for m in CHOICES if m != "auto"]
+)
 def test_fit_report_lists_the_saved_models_own_parameters_and_the_k2_note_for_a_lag_before_a_hysteresis(name, rng, tmp_path):
     rec = _voltage_record(rng)
     small = dict(n_sym=3, n_alpha=2, n_asym=2, poly_order=2)
@@ -454,6 +457,10 @@ def test_fit_report_lists_the_saved_models_own_parameters_and_the_k2_note_for_a_
     params = report.split("## Parameters")[1].split("##")[0]
     assert [line[2:] for line in params.strip().splitlines()[:-1]] == model.describe()
     assert (K2_NOTE in doc["notes"]) == (thermal_of(model) is not None)
+    # the validation block's coverage of the hysteresis input's branches (`branch_coverage`), in fit.json and the report
+    cov = doc["split"]["coverage"]
+    assert 0.0 <= cov["covered_fraction"] <= 1.0 and ("warning" in cov) == (cov["covered_fraction"] < 0.9)
+    assert ("**Warning:**" in report) == ("warning" in cov)
 
 
 @pytest.mark.parametrize("name", list(HYSTERESIS))

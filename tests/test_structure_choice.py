@@ -69,6 +69,7 @@ def test_model_auto_without_validation_samples_fits_one_class(tmp_path):
     assert doc["notes"][0].startswith("model auto -> eupi")
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 17 s; the class choice runs on one record below and fit_records' LORO in test_multi_record.py
 def test_model_auto_on_several_records_compares_on_the_leave_one_record_out_mean(tmp_path):
     from smafl_jax import fit_records
 
@@ -88,6 +89,7 @@ def test_model_auto_on_several_records_compares_on_the_leave_one_record_out_mean
     assert "structure_choice" not in doc1["settings"] and doc1["settings"]["structure"] == "eupi"
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 11 s; the class comparison runs in the lower-validation-RMSE test
 def test_model_auto_on_a_quasi_static_voltage_record_compares_the_static_classes(tmp_path):
     # a drive voltage sampled every 10 s (as the SMA wing reversal curves): the cascade's lag settles within a sample
     r = indep_direct.make_record(4, "preisach", "steps", n=500, dt=10.0, u_lo=0.2, u_span=6.0)

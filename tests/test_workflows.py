@@ -37,6 +37,7 @@ def problem(tmp_path_factory):
     return csv, fit_json, rec
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 17 s; `smafl sample` from the CLI runs in test_bayes.py, the library's sampling below
 def test_library_and_cli_write_the_same_results(problem, tmp_path, capsys):
     from smafl_jax.cli import main
 
@@ -83,6 +84,7 @@ def test_outputs_are_written_atomically_and_listed(problem, tmp_path, monkeypatc
     assert json.loads((out / "summary.json").read_text()) == json.loads(json.dumps(res.summary))
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 12 s; resuming and refusing other settings run through the CLI in test_bayes.py
 def test_resume_extends_and_other_settings_are_refused_unless_restart(problem, tmp_path):
     csv, fit_json, _ = problem
     out = tmp_path / "out"

@@ -245,6 +245,7 @@ def test_cli_fit_preisach_then_control(tmp_path, capsys):
     assert metrics["range_checks"][0]["checked"]  # the fit's training range is known, so the drive is checked
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 18 s; cascade k1 recovery is tested through the library in test_fit.py
 def test_cli_cascade_fit_recovers_a_finite_positive_k1(tmp_path, capsys):
     # the step record shows the thermal lag; every other sample of its first 1000 s keeps the test short
     record = _short_record(tmp_path / "steps.csv", "steps.csv", 500, step=2)

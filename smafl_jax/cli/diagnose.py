@@ -111,9 +111,10 @@ def run(args):
         unexplained=not args.no_unexplained,
     )
     write_diagnosis(out, rec, diag)
-    warning = diag.report["split"].get("coverage", {}).get("warning")
-    if warning:
-        print(f"warning: {warning}", file=sys.stderr)
+    for key in ("coverage", "state_coverage"):
+        warning = (diag.report["split"].get(key) or {}).get("warning")
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
     for w in diag.warnings:
         print(f"warning: {w}", file=sys.stderr)
     sel = ", ".join(diag.selected) or "none"

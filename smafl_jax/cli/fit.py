@@ -175,6 +175,9 @@ def run(args):
     if va:
         line += f"; validation rmse {va['rmse']:.4g}, e_r {va['e_r_percent']:.3g} %"
     print(line)
+    cover = doc["split"].get("coverage", {}).get("warning")
+    if cover:  # the validation block lies on a branch training never visited: its error is not a prediction error
+        print(f"warning: {cover}", file=sys.stderr)
     _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
     return 0

@@ -22,6 +22,7 @@ from ._diagnose import (
     screened_base,
     simulate_segment,
     split_coverage,
+    state_coverage,
     synthetic_effect_record,
     whole_record_split,
 )
@@ -88,6 +89,7 @@ __all__ = [
     "screened_base",
     "simulate_segment",
     "split_coverage",
+    "state_coverage",
     "synthetic_effect_record",
     "whole_record_split",
 ]

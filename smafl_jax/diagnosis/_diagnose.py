@@ -1437,6 +1437,7 @@ def diagnose(
             "train": split.train_labels,
             "heldout": split.test_labels,
             "coverage": split_coverage(split),
+            "state_coverage": state_coverage(base, split),
         },
         "residuals": residuals,
         "applicable_effects": names,
@@ -1634,6 +1635,28 @@ def split_coverage(split, tol=0.02, warn_below=0.9):
     from ..data.split import coverage
 
     return coverage(split, tol=tol, warn_below=warn_below)
+
+
+def state_coverage(model, split):
+    """`data.split.branch_coverage` of the held-out samples on the base model's thermal state (what its hysteresis
+    sees) for a time-block split, or None (no thermal stage, or branch records).
+
+    Why beside `split_coverage` (on the input): a PWM drive switches up and down every period, so its voltage covers
+    every branch while the state it heats may only have risen in training (see `branch_coverage`)."""
+    from ..data.split import branch_coverage
+
+    if thermal_of(model) is None or not hasattr(model, "hysteresis_input") or split.kind != "time":
+        return None
+    (first,), (seg,) = split.train, split.test  # the time block: a training prefix; the whole record, masked
+    k = first.u.shape[0]
+    if not np.array_equal(first.u, seg.u[:k]):
+        return None
+    train = np.zeros(seg.u.shape[0], bool)
+    train[:k] = first.mask
+    x = np.asarray(model.hysteresis_input(jnp.asarray(seg.u), jnp.asarray(seg.dt)))
+    if not np.all(np.isfinite(x)):
+        return None
+    return branch_coverage(x, train, seg.mask, what="base model's thermal state (its hysteresis input)")
 
 
 def resid_after(model, split, resid):

@@ -118,7 +118,11 @@ def _report_md(rec, res):
         "",
         f"- Base model: {b['rule']}",
         f"- Split: {res['split']['rule']}",
-        *([f"- **Warning:** {res['split']['coverage']['warning']}"] if res["split"].get("coverage", {}).get("warning") else []),
+        *[
+            f"- **Warning:** {res['split'][k]['warning']}"
+            for k in ("coverage", "state_coverage")
+            if (res["split"].get(k) or {}).get("warning")
+        ],
         f"- Selected effect(s): **{', '.join(res['selected']) or 'none'}**",
         "",
         f"| model | train RMSE ({u}) | held-out RMSE ({u}) | held-out e_r (%) |",

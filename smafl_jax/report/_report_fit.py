@@ -16,6 +16,7 @@ import numpy as np
 from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
 from .._progress import say
+from ..data.split import branch_coverage
 from ..identify._choose import auto_candidates, auto_structure, fitted_memory_start, screen_start
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
@@ -178,6 +179,17 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
 def _rmse_or_inf(m):
     v = float(m["rmse"])
     return v if np.isfinite(v) else np.inf
+
+
+def _validation_coverage(model, record, train, val):
+    """`branch_coverage` of the validation samples on what the model's hysteresis sees: the fitted thermal state for a
+    lag in front of the hysteresis (a PWM drive switches up and down every period, so its voltage covers every
+    branch while the state it heats may only have risen in training), else the input itself."""
+    x = effective_values(model, record.u, record.dt)
+    what = "fitted model's hysteresis input (thermal state)"
+    if x is None or not np.all(np.isfinite(x)):
+        x, what = record.u, f"input '{record.input_name}'"
+    return branch_coverage(x, train, val, what=what)
 
 
 def _fit_structure(
@@ -357,6 +369,10 @@ def _fit_structure(
         "validation": metrics(record.y[val], yhat[val]) if val.any() else None,
     }
     split_model, final = res.model, res.model
+    if val.any():
+        split_info = {**split_info, "coverage": _validation_coverage(split_model, record, train, val)}
+        if "warning" in split_info["coverage"]:
+            notes.append("validation coverage: " + split_info["coverage"]["warning"])
     if do_refit:
         # The split chose the structure (orientation, hysteresis input, refinement or not) and measured
         # the held-out error; the model a user deploys is then fitted on every sample with those choices.
@@ -580,6 +596,7 @@ def _report_md(doc, files):
         f"- data: `{d['path']}` (sha256 `{d['sha256']}`), input `{d['input_column']}`, output `{d['output_column']}`, "
         f"dt {d['sample_time_s']:g} s, {d['n_samples']} samples",
         f"- split: {doc['split']['rule']}",
+        *([f"- **Warning:** {doc['split']['coverage']['warning']}"] if doc["split"].get("coverage", {}).get("warning") else []),
         *[f"- loading: {note}" for note in d.get("processing", [])],
         f"- solver: {sv['name']} ({sv['n_steps']} steps, {sv['seconds']:.1f} s): {sv['message']}",
         "",
