@@ -235,6 +235,7 @@ def test_fitted_memory_matches_numpy_loop_and_spans_the_rules(rng):
     np.testing.assert_allclose(np.asarray(back.memory), logits)
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 11 s; the joint thermal-start search runs in every default cascade fit (the orientation and initial-state tests)
 def test_joint_thermal_start_refinement_recovers_k1_and_u0(rng):
     """A record that starts part-warm: the 2-D (k1, u0) profile finds both, where the fixed starts are off."""
     dt, n = 0.5, 1600

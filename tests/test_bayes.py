@@ -201,6 +201,7 @@ CHILD = SETUP + textwrap.dedent(
 )
 
 
+@pytest.mark.slow  # suite time (10-minute budget): 15 s; resuming from the checkpoint runs below, and from the CLI in the end-to-end test
 def test_resume_after_sigkill_gives_exact_chain(tmp_path):
     n = 300
     post = make_posterior()

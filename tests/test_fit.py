@@ -66,14 +66,14 @@ def test_profile_beats_or_matches_grid(datasets_dir):
     assert not info["at_grid_edge"]
 
 
-# suite time: the optimistix Gauss-Newton and BFGS cases (10 s each) are slow; LM (optimistix) is the reference and
-# the jaxopt solvers stay in the default suite
+# suite time: the optimistix Gauss-Newton and BFGS cases (10 s each) and jaxopt's L-BFGS-B (27 s) are slow; LM (optimistix)
+# is the reference, and jaxopt's projected gradient (the same `_solve_jaxopt` path as L-BFGS-B) stays
 @pytest.mark.parametrize(
     "solver",
     [
         pytest.param("gauss_newton", marks=pytest.mark.slow),
         pytest.param("bfgs", marks=pytest.mark.slow),
-        "lbfgsb",
+        pytest.param("lbfgsb", marks=pytest.mark.slow),
         "projected_gradient",
     ],
 )
