@@ -20,6 +20,25 @@ def _heat_then_cool(n=1200, ripple=0.004):
     return base + ripple * np.sign(np.sin(2 * np.pi * k / 8)), cut
 
 
+def _numpy_branch_directions(x, deadband):
+    """Reference: one sample at a time, the band [lo, hi] of width 2 deadband follows x when x leaves it."""
+    out = np.zeros(x.size, int)
+    lo, hi, d = x[0] - deadband, x[0] + deadband, 0
+    for i, v in enumerate(x):
+        if v > hi:
+            hi, lo, d = v, v - 2.0 * deadband, 1
+        elif v < lo:
+            lo, hi, d = v, v + 2.0 * deadband, -1
+        out[i] = d
+    return out
+
+
+def test_branch_directions_match_a_numpy_loop():
+    x = np.cumsum(np.random.default_rng(3).standard_normal(3000))
+    for deadband in (0.3, 1.5, 10.0):
+        np.testing.assert_array_equal(branch_directions(x, deadband), _numpy_branch_directions(x, deadband))
+
+
 def test_branch_directions_follow_the_slow_state_not_its_ripple():
     x, cut = _heat_then_cool()
     d = branch_directions(x, deadband=0.02)

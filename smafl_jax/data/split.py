@@ -476,18 +476,16 @@ def branch_directions(x: np.ndarray, deadband: float) -> np.ndarray:
     threshold per sample and reads "holding" on both the heating and the cooling branch; a PWM ripple on it flips
     the slope's sign every period although the state stays on one branch.
     """
+    from ..ops import play
+
     x = np.asarray(x, float)
-    out = np.zeros(x.size, int)
     if x.size == 0:
-        return out
-    lo, hi, d = x[0] - deadband, x[0] + deadband, 0
-    for i, v in enumerate(x):  # sequential by nature (a play operator); records here are <= 1e6 samples
-        if v > hi:
-            hi, lo, d = v, v - 2.0 * deadband, 1
-        elif v < lo:
-            lo, hi, d = v, v + 2.0 * deadband, -1
-        out[i] = d
-    return out
+        return np.zeros(0, int)
+    # the play operator of half-width `deadband` started at x[0]: it moves only when x leaves its band, and the sign
+    # of its last move is the branch (0 before it first moves)
+    p = np.asarray(play(x, np.asarray([float(deadband)]), y0=np.asarray([x[0]]), method="scan"))[:, 0]
+    step = np.sign(np.diff(p, prepend=p[0])).astype(int)
+    return step[np.maximum.accumulate(np.where(step != 0, np.arange(x.size), 0))]
 
 
 def branch_coverage(
