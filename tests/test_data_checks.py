@@ -189,6 +189,40 @@ def test_input_spike_is_found_in_the_input_column():
     assert [(f.kind, f.column, f.index) for f in found] == [("spike", "input", (1234, 1235))]
 
 
+def pwm_record(seed, n=6000):
+    """A PWM voltage whose duty drifts close to 0 and 1 (pulses of 1-3 samples) and a first-order-lag response."""
+    rng = np.random.default_rng(5000 + seed)
+    period = int(rng.integers(12, 40))
+    k = np.arange(n)
+    duty = 0.5 + 0.49 * np.sin(2 * np.pi * k / rng.uniform(1500, 3000) + rng.uniform(0, 2 * np.pi))
+    high = float(rng.uniform(2, 6))
+    u = high * ((k % period) < np.round(duty * period)) + 0.003 * rng.normal(size=n)
+    y = np.zeros(n)
+    for i in range(1, n):
+        y[i] = y[i - 1] + 0.02 * (u[i - 1] ** 2 / high**2 - y[i - 1])
+    return Record.from_arrays(k * 0.04, u, y + 0.002 * rng.normal(size=n), name="pwm"), high
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_short_pwm_pulses_are_no_input_spikes(seed):
+    """At a duty near 0 or 1 a PWM pulse lasts 1-3 samples: an excursion to a level the drive dwells at is switching."""
+    rec, _ = pwm_record(seed)
+    assert check_record(rec) == []
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_input_spike_off_the_pwm_levels_is_found(seed):
+    rec, high = pwm_record(seed)
+    u = rec.u.copy()
+    # inside a pulse or a pause (a spike on an edge is off only one side's trend), high or low: either way a value
+    # the drive never holds
+    on = u > high / 2
+    k = next(i for i in range(3000, len(u)) if (on[i - 5 : i + 6] == on[i]).all())
+    u[k] += 0.8 * high
+    found = check_record(Record.from_arrays(rec.time, u, rec.y, name="x"))
+    assert [(f.kind, f.column, f.index) for f in found] == [("spike", "input", (k, k + 1))]
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_stuck_stretch_is_found(seed):
     rec, _ = clean(seed)

@@ -42,7 +42,11 @@ Detectors on one record (`check_record`):
   predicted by at least one side), by more than 8 x 2 sigma, 1 % of R and
   ``SPIKE_LOCAL`` (3) times the neighbours' own median sample-to-sample change
   (a sharp but smooth transient of a fast signal is not a spike).  The first
-  and last two samples are not judged.  Action: ``mark``.
+  and last two samples are not judged.  On the input, an excursion that peaks
+  within 1 % of R of a level the drive dwells at (at least ``DRIVE_LEVEL``
+  (5 %) of its samples within 1 % of R) is switching, not a fault: a PWM pulse
+  of 1-3 samples at a low or high duty looks like a spike and is part of the
+  drive.  Action: ``mark``.
 - ``clipped`` (output).  Rule: the record's minimum or maximum value is held by
   at least ``FLAT_MIN`` (10) samples and ``CLIP_FACTOR`` (5) times as many as
   the typical distinct value, and at least 10 other samples lie within 5 % of
@@ -114,6 +118,7 @@ SPIKE_REL = 0.01
 SPIKE_MAX_LEN = 3
 SIDE_POINTS = 4
 SPIKE_LOCAL = 3.0
+DRIVE_LEVEL = 0.05
 SIDE_NOISE = 2.0  # noise of a 4-point line extrapolated 1-3 steps, in units of the sample noise (about 1.6-2.2)
 FLAT_MIN = 10
 FLAT_P = 1e-3
@@ -229,7 +234,14 @@ def _side_prediction(t: np.ndarray, x: np.ndarray, idx: np.ndarray, at: np.ndarr
     return x[idx].mean() + slope * (t[at] - t[idx].mean())
 
 
-def _spikes(rec: Record, x: np.ndarray, column: str) -> list[Finding]:
+def _dwell_level(x: np.ndarray, value: float, rng: float) -> bool:
+    """Whether at least ``DRIVE_LEVEL`` of the samples lie within ``SPIKE_REL`` of the range of ``value``."""
+    return bool(np.mean(np.abs(x - value) <= SPIKE_REL * rng) >= DRIVE_LEVEL)
+
+
+def _spikes(rec: Record, x: np.ndarray, column: str, drive: bool = False) -> list[Finding]:
+    """Short excursions off the local trend on both sides; ``drive``: the column is the input (levels it dwells at are
+    switching, not faults)."""
     rng = robust_range(x)
     n = x.size
     if n < SPIKE_WINDOW or not math.isfinite(rng):
@@ -250,6 +262,8 @@ def _spikes(rec: Record, x: np.ndarray, column: str) -> list[Finding]:
         if b - a > SPIKE_MAX_LEN or b - a != core.size:
             continue
         k = a + int(np.argmax(np.abs(r[a:b])))
+        if drive and _dwell_level(x, float(x[k]), rng):
+            continue  # a short pulse of a switching drive (PWM at a low or high duty), not a fault
         # a spike leaves the local trend on both sides: a peak of a triangle or a corner is predicted by at least
         # one side's straight line, a spike by neither
         li, ri = np.arange(max(0, a - SIDE_POINTS), a), np.arange(b, min(n, b + SIDE_POINTS))
@@ -556,7 +570,7 @@ def check_record(record: Record, *, dt_rtol: float = DEFAULT_DT_RTOL) -> list[Fi
         )
     if constant:
         return out
-    out += _spikes(record, np.asarray(record.u, float), record.input_name)
+    out += _spikes(record, np.asarray(record.u, float), record.input_name, drive=True)
     if record.y is not None:
         y = np.asarray(record.y, float)
         spikes = _spikes(record, y, record.output_name)
