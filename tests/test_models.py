@@ -234,3 +234,21 @@ def test_eupi_polynomial_continues_linearly_outside_its_range(rng):
     np.testing.assert_allclose((cols[5] - cols[4]) / 1e-7, [2.0, 3.0, 4.0], rtol=1e-5)
     g = jax.grad(lambda x: jnp.sum(poly_columns(x, 3)))
     assert np.isfinite(float(g(jnp.asarray(1.0)))) and float(g(jnp.asarray(2.0))) == pytest.approx(9.0)
+
+
+def test_weakly_typed_fields_do_not_recompile():
+    """A field built from a Python number (``jnp.full(n, 0.5)`` is weakly typed) and the same field from a fit are one
+    jit cache entry: the converter makes them strongly typed (a second compile of the LM solve cost 5-6 s)."""
+    import equinox as eqx
+
+    base = sj.EUPI.from_range(0.0, 1.0).with_fitted_memory(0.5)
+    assert not base.memory.weak_type
+    strong = base.with_fitted_memory(np.float64(0.5))
+    assert not sj.JouleThermal(jnp.asarray(0.05), 0.04).k1.weak_type
+
+    @eqx.filter_jit
+    @eqx.debug.assert_max_traces(max_traces=1)
+    def out(m):
+        return m.simulate(jnp.linspace(0.0, 1.0, 20))
+
+    np.testing.assert_allclose(out(base), out(strong))
