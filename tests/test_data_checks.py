@@ -223,6 +223,17 @@ def test_input_spike_off_the_pwm_levels_is_found(seed):
     assert [(f.kind, f.column, f.index) for f in found] == [("spike", "input", (k, k + 1))]
 
 
+def test_independent_low_duty_pwm_record_is_no_zeroed_sensor(tmp_path):
+    """A clean 5 Hz PWM record from the independent plant (length sensor, warm start): the pulses at a low duty leave
+    the input's median at 0 while the output moves with the duty; that is no 'input holds' (it was flagged as a zeroed
+    sensor with the advice to cut 203 samples)."""
+    import indep_plant
+
+    r = indep_plant.make_record(1, drive="pwm", rate_hz=5, minutes=5, start="warm", orientation="length")
+    indep_plant.write_csv(tmp_path / "pwm5.csv", r)
+    assert check_record(load_record(tmp_path / "pwm5.csv")) == []
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 def test_stuck_stretch_is_found(seed):
     rec, _ = clean(seed)

@@ -27,7 +27,9 @@ Detectors on one record (`check_record`):
   medians of its two halves differ by at most ``LEVEL_DRIFT`` (30 %) of the
   step: no fast ramp into a limit); and the input holds (its window medians
   differ by at most ``QUIET_REL`` (2 %) of its range, its median-filtered trace
-  stays within 4 % of its range).  Output spikes are bridged first (a spike in a
+  stays within 4 % of its range, and at most ``QUIET_OFF`` (10 %) of its samples
+  lie more than 4 % of its range off the windows' median: the pulses of a PWM
+  drive at a low duty are not a hold).  Output spikes are bridged first (a spike in a
   window biases its median); steps across a sampling gap of kept irregular
   stamps are skipped (``gap`` covers them).  The finding covers the shorter
   side of the step (up to the neighbouring step); the steps into and out of one
@@ -111,6 +113,7 @@ JUMP_WINDOW = 10
 JUMP_Z = 10.0
 JUMP_REL = 0.05
 QUIET_REL = 0.02
+QUIET_OFF = 0.1
 LEVEL_DRIFT = 0.3
 SPIKE_WINDOW = 7
 SPIKE_Z = 8.0
@@ -300,7 +303,10 @@ def _input_quiet(u: np.ndarray, a: int, k: int, b: int) -> tuple[bool, float]:
         return True, 0.0
     du = abs(float(np.median(u[k + 1 : b]) - np.median(u[a : k + 1]))) / ru
     mf = _medfilt(u[a:b], 5) if b - a >= 5 else u[a:b]
-    return bool(du <= QUIET_REL and float(np.ptp(mf)) / ru <= 2 * QUIET_REL), du
+    # a PWM drive at a low duty has a flat median (the filter removes its pulses) but is not holding: the output moves
+    # with its duty (measured: a clean 5 Hz PWM record flagged as a zeroed sensor); a few input spikes still hold
+    off = float(np.mean(np.abs(u[a:b] - np.median(u[a:b])) > 2 * QUIET_REL * ru))
+    return bool(du <= QUIET_REL and float(np.ptp(mf)) / ru <= 2 * QUIET_REL and off <= QUIET_OFF), du
 
 
 def _step_at(y: np.ndarray, k: int, w: int) -> tuple[float, float]:
