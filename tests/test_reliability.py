@@ -615,6 +615,7 @@ def test_long_phases_report_progress(tmp_path, monkeypatch, caplog):
 
 
 def test_padded_calls_equal_unpadded_ones():
+    import equinox as eqx
     import jax.numpy as jnp
 
     from smafl_jax.models import MIN_BUCKET, bucket_length, padded_call
@@ -625,10 +626,12 @@ def test_padded_calls_equal_unpadded_ones():
     assert len({bucket_length(n) for n in range(1, MIN_BUCKET + 1)}) == 1
     model = sj.load_model(TRUTH)
     rec = sj.load_record(RECORD)
+    # one jitted function for both calls (eager op-by-op simulation and a new lambda per length cost 16 s here)
+    sim = eqx.filter_jit(lambda m, x, dt: m.simulate(x, dt))
     for n in (50, 300, 777):
         u = np.asarray(rec.u[:n])
-        direct = np.asarray(model.simulate(jnp.asarray(u), rec.dt))
-        padded = padded_call(lambda m, x, dt: m.simulate(x, dt), model, (u,), rec.dt)
+        direct = np.asarray(sim(model, jnp.asarray(u), rec.dt))
+        padded = padded_call(sim, model, (u,), rec.dt)
         assert padded.shape == (n,)
         np.testing.assert_allclose(padded, direct, rtol=1e-13, atol=1e-14)
 
