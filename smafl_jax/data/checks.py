@@ -237,9 +237,12 @@ def _side_prediction(t: np.ndarray, x: np.ndarray, idx: np.ndarray, at: np.ndarr
     return x[idx].mean() + slope * (t[at] - t[idx].mean())
 
 
-def _dwell_level(x: np.ndarray, value: float, rng: float) -> bool:
-    """Whether at least ``DRIVE_LEVEL`` of the samples lie within ``SPIKE_REL`` of the range of ``value``."""
-    return bool(np.mean(np.abs(x - value) <= SPIKE_REL * rng) >= DRIVE_LEVEL)
+def _dwell_level(xs: np.ndarray, value: float, rng: float) -> bool:
+    """Whether at least ``DRIVE_LEVEL`` of the samples lie within ``SPIKE_REL`` of the range of ``value`` (``xs``:
+    the samples sorted, so that a long PWM record with thousands of short pulses costs a search per pulse)."""
+    lo = np.searchsorted(xs, value - SPIKE_REL * rng, side="left")
+    hi = np.searchsorted(xs, value + SPIKE_REL * rng, side="right")
+    return bool(hi - lo >= DRIVE_LEVEL * xs.size)
 
 
 def _spikes(rec: Record, x: np.ndarray, column: str, drive: bool = False) -> list[Finding]:
@@ -250,6 +253,7 @@ def _spikes(rec: Record, x: np.ndarray, column: str, drive: bool = False) -> lis
     if n < SPIKE_WINDOW or not math.isfinite(rng):
         return []
     t = np.asarray(rec.time, float)
+    xs = np.sort(x) if drive else None
     r = x - _medfilt(x, SPIKE_WINDOW)
     dev = np.abs(r - np.median(r))
     s = 1.4826 * float(np.median(dev)) or 1.2533 * float(np.mean(dev))
@@ -265,7 +269,7 @@ def _spikes(rec: Record, x: np.ndarray, column: str, drive: bool = False) -> lis
         if b - a > SPIKE_MAX_LEN or b - a != core.size:
             continue
         k = a + int(np.argmax(np.abs(r[a:b])))
-        if drive and _dwell_level(x, float(x[k]), rng):
+        if drive and _dwell_level(xs, float(x[k]), rng):
             continue  # a short pulse of a switching drive (PWM at a low or high duty), not a fault
         # a spike leaves the local trend on both sides: a peak of a triangle or a corner is predicted by at least
         # one side's straight line, a spike by neither
