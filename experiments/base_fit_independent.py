@@ -30,14 +30,8 @@ from smafl_jax.report import fit_record  # noqa: E402
 
 RESULTS = ROOT / "experiments" / "results"
 
-#: The record kinds of issue 18's table (drive, rate, start, sensor).
-CELLS = {
-    "multisine, cold start, 25 Hz": dict(drive="multisine", rate_hz=25, start="cold"),
-    "PWM, cold start, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold"),
-    "staircase, warm start, 10 Hz": dict(drive="staircase", rate_hz=10, start="warm"),
-    "PWM, length sensor, 25 Hz": dict(drive="pwm", rate_hz=25, start="cold", orientation="length"),
-    "multisine, half-warm start, 10 Hz": dict(drive="multisine", rate_hz=10, start="mid"),
-}
+#: The record kinds of issue 18's table (drive, rate, start, sensor): the matrix's one definition.
+CELLS = indep_plant.MATRIX_CELLS
 
 
 def run_cell(name, kw, seed, minutes, variants, tmp):
