@@ -45,6 +45,23 @@ def test_fit_stores_effective_range_of_the_saved_model(tmp_path):
     assert doc["data"]["input_range"] == pytest.approx([rec.u[train].min(), rec.u[train].max()], rel=1e-12)
 
 
+def test_fit_stores_the_range_of_the_refitted_model():
+    """After the whole-record refit the saved model has seen every sample: its stored ranges are the whole record's
+    (they were the split's training part, so `smafl simulate` warned about drives the saved model was fitted on)."""
+    from smafl_jax.report import fit_record
+
+    rec = sj.load_record(DATASETS / "main_loop.csv")
+    model, doc, (train, val, _) = fit_record(
+        rec, model="cascade", max_steps=0, orientation="rises", sees="voltage", thermal_start="steady", memory="descended",
+    )  # fmt: skip
+    assert doc["split_model"] is not None and val.any()
+    x = np.asarray(model.hysteresis_input(rec.u, rec.dt))
+    assert doc["data"]["effective_input_range"] == pytest.approx([x.min(), x.max()], rel=1e-12)
+    assert doc["data"]["input_range"] == pytest.approx([rec.u.min(), rec.u.max()], rel=1e-12)
+    # the record's validation block reaches inputs its training part does not: the two ranges differ
+    assert rec.u.max() > rec.u[train].max() or rec.u.min() < rec.u[train].min() or x.max() > x[train].max()
+
+
 @pytest.fixture
 def narrow_model(tmp_path):
     """The bundled truth cascade, saved as if it had been fitted on drives of 0-2 V only."""

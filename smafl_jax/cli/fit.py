@@ -119,7 +119,7 @@ def run(args):
     from .._errors import UserInputError
     from ..data import load_records
     from ..data._data import parse_resample
-    from ..report._report_fit import fit_record, write_fit_outputs
+    from ..report._report_fit import STATIC_ON_DRIVE, fit_record, write_fit_outputs
 
     if args.max_steps < 0:
         raise UserInputError(f"--max-steps must be >= 0, got {args.max_steps}")
@@ -163,6 +163,9 @@ def run(args):
 
     if doc["settings"].get("structure_choice"):  # model auto compared classes: say which won and on what
         print(doc["notes"][0], file=sys.stderr)
+    for note in doc["notes"]:
+        if note.startswith(STATIC_ON_DRIVE):
+            print(f"warning: {note}", file=sys.stderr)
     train_rmse = doc["metrics"]["train"].get("rmse")
     if train_rmse is None or not math.isfinite(float(train_rmse)):  # never report a non-finite fit as a success
         raise UserInputError(f"{rec.path}: the fit has a non-finite training RMSE; nothing written (check the data's scale)")

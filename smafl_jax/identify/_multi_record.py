@@ -112,10 +112,21 @@ def _input_range(records, masks=None) -> list[float]:
     return value_range(np.concatenate([np.asarray(r.u)[m] if m is not None else np.asarray(r.u) for r, m in zip(records, masks)]))
 
 
-def add_record_extras(doc: dict, record, train: np.ndarray, val: np.ndarray, yhat: np.ndarray) -> dict:
-    """Add to a one-record fit.json: training input range, loading notes, baselines and data checks (in place)."""
-    doc["data"]["input_range"] = _input_range([record], [train])
-    doc["data"]["input_range_rule"] = "min and max of the input over the training samples (the range the model was fitted on)"
+def add_record_extras(
+    doc: dict, record, train: np.ndarray, val: np.ndarray, yhat: np.ndarray, fitted_on: np.ndarray | None = None
+) -> dict:
+    """Add to a one-record fit.json: training input range, loading notes, baselines and data checks (in place).
+
+    ``fitted_on``: the samples the SAVED model was fitted on (default ``train``; the whole record after the refit),
+    which is the range `smafl simulate` checks a new drive against; the baselines use the split (``train`` / ``val``).
+    """
+    whole = fitted_on is not None and bool(np.all(fitted_on))
+    doc["data"]["input_range"] = _input_range([record], [train if fitted_on is None else fitted_on])
+    doc["data"]["input_range_rule"] = (
+        "min and max of the input over the whole record (the saved model was refitted on it)"
+        if whole
+        else "min and max of the input over the training samples (the range the model was fitted on)"
+    )
     doc["data"]["processing"] = list(getattr(record, "processing", ()) or ())
     model_val = doc["metrics"].get("validation")
     doc["baselines"] = baselines_doc(

@@ -74,6 +74,10 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
     raise UserInputError(f"unknown model {kind!r}; choose one of {MODELS}")
 
 
+#: Start of the note (printed as a warning by `smafl fit`) for a static hysteresis class fitted to a drive voltage.
+STATIC_ON_DRIVE = "static model on a drive voltage:"
+
+
 def structure_start(model, record, thresholds, tilts, grid):
     """``(structure, thresholds, tilts, untrained start, notes)``: the model choice shared by `fit_record` and the
     multi-record fit (``model="auto"`` picks the structure from the input and trains thresholds and tilts)."""
@@ -82,6 +86,12 @@ def structure_start(model, record, thresholds, tilts, grid):
     if model == "auto":
         structure, why = auto_structure(record)
         notes.append(f"model auto -> {structure}: {why}")
+    elif model in HYSTERESIS and auto_structure(record)[0] == "cascade":
+        # measured on an independent plant's PWM record: a static Preisach of the voltage left 250x the noise held out
+        notes.append(
+            f"{STATIC_ON_DRIVE} '{record.input_name}' is a drive voltage, but --model {model} fits a static hysteresis of "
+            "it with no thermal lag between the drive and the actuator; --model auto fits the Joule-heating cascade"
+        )
     thresholds = (model == "auto") if thresholds is None else bool(thresholds)
     tilts = (model == "auto") if tilts is None else bool(tilts)
     return structure, thresholds, tilts, build_model(structure, record, **(grid or {})), notes
@@ -446,11 +456,13 @@ def _fit_structure(
     }
     from ..identify._multi_record import add_record_extras  # baselines, data checks, loading notes, training input range
 
-    add_record_extras(doc, record, train, val, yhat)
+    # the saved model's own training samples: every sample after the whole-record refit, else the split's training part
+    fitted_on = np.ones(len(record), bool) if final is not split_model else train
+    add_record_extras(doc, record, train, val, yhat, fitted_on=fitted_on)
     x_eff = effective_values(final, record.u, record.dt)
     if x_eff is not None and np.all(np.isfinite(x_eff)):
         # what the saved model's hysteresis saw in training: simulate/control/sweep warn when a new input leaves it
-        doc["data"]["effective_input_range"] = value_range(x_eff, train)
+        doc["data"]["effective_input_range"] = value_range(x_eff, fitted_on)
         doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
     return final, doc, (train, val, yhat)
 
