@@ -6,9 +6,10 @@ structure, start screening, joint (k1, u0) search, fitted operator memory, split
 refit), in a fresh process state (JIT compilation included, as a user pays it).  Side by side, in the same
 process on the same record: the profiled start alone (``max_steps=0``: screening and variable projection,
 no joint refinement), so the row shows what the gradient refinement costs.
-Ratio = ours seconds / profiled-only seconds.
+Ratio = ours seconds / profiled-only seconds.  Other 30 000-sample records: ``--drive multisine --rate 100``
+(the duration follows from the rate), one process per record so each pays its own compilation.
 
-    python -m benchmarks.bench_default_fit [--quick]
+    python -m benchmarks.bench_default_fit [--quick] [--drive pwm|multisine|staircase|steps|chirp|triangle] [--rate HZ]
 """
 
 from __future__ import annotations
@@ -28,15 +29,15 @@ ROOT = Path(__file__).resolve().parents[1]
 RATIO_MEANING = "default fit seconds / profiled-start-only seconds (what the joint refinement costs)"
 
 
-def run(quick=False):
+def run(quick=False, drive="pwm", rate_hz=25):
     sys.path.insert(0, str(ROOT / "tests"))
     import indep_plant
 
     import smafl_jax as sj
     from smafl_jax.report import fit_record
 
-    minutes = 5.0 if quick else 20.0
-    r = indep_plant.make_record(7, drive="pwm", rate_hz=25, minutes=minutes, start="cold")
+    minutes = (5.0 if quick else 20.0) * 25 / rate_hz  # 30 000 samples (quick: 7 500)
+    r = indep_plant.make_record(7, drive=drive, rate_hz=rate_hz, minutes=minutes, start="cold")
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "rec.csv"
         indep_plant.write_csv(path, r)
@@ -54,12 +55,19 @@ def run(quick=False):
             seconds["default"],
             seconds["profiled only"],
             "s",
-            note=f"independent PWM record, {minutes:g} min at 25 Hz; JIT compilation included",
+            note=f"independent {drive} record, {minutes:g} min at {rate_hz:g} Hz, cold start; JIT compilation included",
             n_samples=len(rec),
         )
     ]
 
 
 if __name__ == "__main__":
-    for r_ in run(quick="--quick" in sys.argv):
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--drive", default="pwm")
+    ap.add_argument("--rate", type=float, default=25.0)
+    a = ap.parse_args()
+    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate):
         print(r_)
