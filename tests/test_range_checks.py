@@ -91,3 +91,54 @@ def test_control_and_sweep_warn_when_the_drive_leaves_the_fitted_range(tmp_path,
     rows = np.genfromtxt(tmp_path / "sw" / "sweep.csv", delimiter=",", names=True)
     assert s["n_outside"] == int(np.sum(rows["u_max_V"] > 2.0)) and s["n_configurations"] == 4
     assert (s["n_outside"] > 0) == ("configurations drive the plant model outside" in err)
+
+
+def _ramp(a, b, n):
+    return np.linspace(a, b, n)
+
+
+def test_branch_check_flags_a_branch_training_never_walked():
+    from smafl_jax.models import branch_check, trained_branches
+
+    up = _ramp(0.0, 1.0, 400)
+    trained = trained_branches(up)  # training only ever rose through [0, 1]
+    assert trained["falling"] == [0]  # only the first sample (before any move) counts for both branches
+    assert branch_check(up, trained)["n_untrained"] == 0  # its own trajectory
+    down = np.concatenate([up, _ramp(1.0, 0.0, 400)])
+    c = branch_check(down, trained, dt=0.1)
+    # the falling half lies inside the range but on the untrained branch (minus the deadband before it reads "falling")
+    assert 0.45 < c["fraction_untrained"] <= 0.5 and c["by_direction"]["rising"] == 0
+    assert "walks branches its training never visited" in c["warning"] and "mostly falling" in c["warning"]
+    assert 0.9 <= c["untrained_span_fraction"] <= 1.0
+    # however briefly: a quick dip back through 30 % of the span is flagged, a dip within the 2 % deadband is not
+    dip = np.concatenate([up, _ramp(1.0, 0.7, 20)])
+    assert 0.2 <= branch_check(dip, trained)["untrained_span_fraction"] and "warning" in branch_check(dip, trained)
+    assert "warning" not in branch_check(np.concatenate([up, _ramp(1.0, 0.985, 5)]), trained)
+    # a training record that rose and fell covers both: the same new drive is fine
+    both = trained_branches(np.concatenate([up, _ramp(1.0, 0.0, 400)]))
+    assert branch_check(down, both)["n_untrained"] == 0 and "warning" not in branch_check(down, both)
+    # samples outside the trained range are the range check's business, not counted here
+    assert branch_check(_ramp(2.0, 3.0, 50), trained)["n_inside"] == 0
+    assert not branch_check(down, None)["checked"]
+
+
+def test_simulate_warns_on_an_untrained_branch(tmp_path, capsys):
+    model = sj.load_model(DATASETS / "truth.json")
+    dt = 0.05
+    heat = np.repeat(np.linspace(0.5, 3.0, 6), 400)  # a staircase that only ever heats
+    x = np.asarray(model.hysteresis_input(heat, dt))
+    path = tmp_path / "heated.json"
+    sj.save_model(
+        path, model, data={"input_range": [0.5, 3.0], "effective_input_range": [float(x.min()), float(x.max())],
+                           "trained_branches": sj.models.trained_branches(x)},
+    )  # fmt: skip
+    cool = np.concatenate([heat, heat[::-1][400:]])  # the same levels back down: in range, on the cooling branch
+    csv = tmp_path / "cool.csv"
+    sj.atomic_write_csv(csv, {"time_s": np.arange(cool.size) * dt, "voltage_V": cool})
+    assert main(["simulate", str(path), str(csv), "--out", str(tmp_path / "out.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "walks branches its training never visited" in err and "leaves the range" not in err
+    csv2 = tmp_path / "heat.csv"
+    sj.atomic_write_csv(csv2, {"time_s": np.arange(heat.size) * dt, "voltage_V": heat})
+    assert main(["simulate", str(path), str(csv2), "--out", str(tmp_path / "out2.csv")]) == 0
+    assert "never visited" not in capsys.readouterr().err

@@ -48,7 +48,7 @@ from ._preisach import (
     solve_penalised,
     tikhonov_matrix,
 )
-from ._range import range_check
+from ._range import branch_check, range_check, trained_branches
 from ._simulate import simulate, simulate_batch
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
@@ -112,4 +112,6 @@ __all__ = [
     "N_LEVELS_GRID",
     "solve_penalised",
     "range_check",
+    "branch_check",
+    "trained_branches",
 ]
