@@ -67,16 +67,25 @@ def _start_fraction(th):
     return COLD_FRACTION if th == "cold" else float(th)
 
 
+def _is_voltage(record) -> bool:
+    name = (record.input_name or "").lower()
+    unit = str(dict(getattr(record, "units", {}) or {}).get(record.input_name, "")).strip().lower()
+    return "volt" in name or name.endswith("_v") or unit in _VOLTAGE_UNITS
+
+
+def drives_joule_heating(record) -> bool:
+    """Is the record's input a drive voltage >= 0 (which heats the actuator through a thermal lag)?"""
+    return _is_voltage(record) and float(np.min(record.u)) >= 0
+
+
 def auto_structure(record):
     """``("cascade" | "eupi", reason)``: the structure ``--model auto`` fits to this record.
 
     A drive voltage heats the actuator through a thermal lag (the paper's cascade); any other input
     (temperature, pressure, current already converted...) drives the hysteresis directly.
     """
-    name = (record.input_name or "").lower()
-    unit = str(dict(getattr(record, "units", {}) or {}).get(record.input_name, "")).strip().lower()
-    voltage = "volt" in name or name.endswith("_v") or unit in _VOLTAGE_UNITS
-    if voltage and float(np.min(record.u)) >= 0:
+    voltage = _is_voltage(record)
+    if drives_joule_heating(record):
         return "cascade", f"input '{record.input_name}' is a drive voltage >= 0: Joule heating -> thermal lag -> EUPI"
     if voltage:
         return "eupi", f"input '{record.input_name}' is a voltage but goes below 0; Joule heating needs U >= 0, so static EUPI"

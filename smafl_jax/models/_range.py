@@ -145,8 +145,9 @@ def trained_branches(x, mask=None) -> dict:
 
 
 def branch_check(x, trained: dict | None, *, dt: float | None = None) -> dict:
-    """Share of the samples of ``x`` inside the trained range that lie on a branch training visited (`trained_branches`);
-    a ``warning`` when more than `BRANCH_WARN` do not, with the longest untrained stretch."""
+    """Samples of ``x`` inside the trained range that lie on a branch training never visited (`trained_branches`), and
+    the share of the trained span they cross; a ``warning`` (with the first such stretch) when that share reaches
+    `BRANCH_WARN`."""
     if not trained:
         return {"checked": False, "what": "branches", "note": "the model file carries no trained branches: branches not checked"}
     from ..data.split import branch_directions

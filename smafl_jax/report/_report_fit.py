@@ -17,7 +17,7 @@ from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
 from .._progress import say
 from ..data.split import branch_coverage
-from ..identify._choose import auto_candidates, auto_structure, fitted_memory_start, screen_start
+from ..identify._choose import auto_candidates, auto_structure, drives_joule_heating, fitted_memory_start, screen_start
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
@@ -86,7 +86,8 @@ def structure_start(model, record, thresholds, tilts, grid):
     if model == "auto":
         structure, why = auto_structure(record)
         notes.append(f"model auto -> {structure}: {why}")
-    elif model in HYSTERESIS and auto_structure(record)[0] == "cascade":
+    start = build_model(structure, record, **(grid or {}))
+    if thermal_of(start) is None and drives_joule_heating(record):
         # measured on an independent plant's PWM record: a static Preisach of the voltage left 250x the noise held out
         notes.append(
             f"{STATIC_ON_DRIVE} '{record.input_name}' is a drive voltage, but --model {model} fits a static hysteresis of "
@@ -94,7 +95,7 @@ def structure_start(model, record, thresholds, tilts, grid):
         )
     thresholds = (model == "auto") if thresholds is None else bool(thresholds)
     tilts = (model == "auto") if tilts is None else bool(tilts)
-    return structure, thresholds, tilts, build_model(structure, record, **(grid or {})), notes
+    return structure, thresholds, tilts, start, notes
 
 
 def fit_record(record, *, model="auto", progress=False, **options):
@@ -181,7 +182,8 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
             for t in table
         )
         + f" -> {name} ({how})",
-        *(n for n in doc["notes"] if not n.startswith("model auto -> ")),  # the cascade fitted as "auto" said it too
+        # the cascade fitted as "auto" said it too; a static class chosen here on held-out error is no user's mistake
+        *(n for n in doc["notes"] if not n.startswith(("model auto -> ", STATIC_ON_DRIVE))),
     ]
     return final, doc, extra
 
