@@ -134,10 +134,15 @@ def test_simulate_warns_on_an_untrained_branch(tmp_path, capsys):
     )  # fmt: skip
     cool = np.concatenate([heat, heat[::-1][400:]])  # the same levels back down: in range, on the cooling branch
     csv = tmp_path / "cool.csv"
-    sj.atomic_write_csv(csv, {"time_s": np.arange(cool.size) * dt, "voltage_V": cool})
-    assert main(["simulate", str(path), str(csv), "--out", str(tmp_path / "out.csv")]) == 0
+    measured = np.asarray(sj.simulate(model, cool, dt))  # --metrics scores against a measured column
+    sj.atomic_write_csv(csv, {"time_s": np.arange(cool.size) * dt, "voltage_V": cool, "displacement_mm": measured})
+    metrics = tmp_path / "m.json"
+    argv = ["simulate", str(path), str(csv), "--out", str(tmp_path / "out.csv"), "--metrics", str(metrics)]
+    assert main([*argv, "--measured", "displacement_mm"]) == 0
     err = capsys.readouterr().err
     assert "walks branches its training never visited" in err and "leaves the range" not in err
+    chk = json.loads(metrics.read_text())["branch_check"]
+    assert chk["checked"] and chk["by_direction"]["falling"] > 0 and chk["untrained_span_fraction"] >= 0.1
     csv2 = tmp_path / "heat.csv"
     sj.atomic_write_csv(csv2, {"time_s": np.arange(heat.size) * dt, "voltage_V": heat})
     assert main(["simulate", str(path), str(csv2), "--out", str(tmp_path / "out2.csv")]) == 0

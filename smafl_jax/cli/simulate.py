@@ -3,7 +3,9 @@
 Warns (stderr, and ``input_range_check`` / ``effective_input_range_check`` in the ``--metrics`` JSON)
 when the input, or a cascade's hysteresis input, leaves the range the model was fitted on
 (``data.input_range`` / ``data.effective_input_range`` of a fit.json): when, for how long and by how much.
-A model file without that range is run with a note that the range could not be checked.
+A model file without that range is run with a note that the range could not be checked.  It also warns
+(``branch_check``) when the hysteresis input walks a branch its training never visited across 10 % or more of the
+trained span, even inside the range (``data.trained_branches``; a wire heated but never cooled in training).
 
 ``--calibrate START:END`` re-anchors the model on that stretch of the new record (`smafl_jax.recalibrate`:
 input gain and offset, output offset, fitted on the segment only; ``--calibrate-fit`` picks which) and writes

@@ -303,6 +303,7 @@ def simulate_record(
                 **({"n_record_samples": len(rec), "calibration": calibration} if calibration is not None else {}),
                 "input_range_check": checks[0],
                 "effective_input_range_check": checks[1] if len(checks) > 1 else None,
+                "branch_check": checks[2] if len(checks) > 2 else None,
                 "processing": list(rec.processing),
             },
         )
