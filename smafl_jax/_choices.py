@@ -10,7 +10,16 @@ SOLVERS = ("lm", "gauss_newton", "bfgs", "lbfgsb", "projected_gradient")
 #: A new hysteresis model is one class in one module plus one line here (`smafl fit --model NAME`).
 HYSTERESIS = {"eupi": "models._eupi:EUPI", "preisach": "models._preisach:Preisach"}
 #: Model structures `smafl fit --model` accepts.
-MODELS = ("auto", "eupi", "cascade", "joule", *(k for k in HYSTERESIS if k != "eupi"))
+#: ``cascade`` is the Joule cascade with the EUPI (the paper's); ``cascade-NAME`` puts another registered hysteresis class
+#: behind the same thermal lag.
+MODELS = (
+    "auto",
+    "eupi",
+    "cascade",
+    "joule",
+    *(k for k in HYSTERESIS if k != "eupi"),
+    *(f"cascade-{k}" for k in HYSTERESIS if k != "eupi"),
+)
 #: Validation split rules of one record.
 SPLITS = ("auto", "time", "branch", "none")
 #: Operator-memory options of `smafl fit --memory`: "auto", "fitted", "rule" and the initial-state rules a fit

@@ -37,10 +37,10 @@ def add_parser(sub):
         "--model",
         choices=MODELS,
         default="auto",
-        help="auto (cascade for a drive voltage; any other input: every hysteresis class (eupi, preisach) fitted to one "
-        "record and the lower validation RMSE kept, eupi for several records; thresholds and tilts trained), eupi "
-        "(paper eq. 2), cascade (thermal + EUPI), joule (eq. 7 lag), or any other registered hysteresis model "
-        "(preisach); default auto",
+        help="auto (every hysteresis class fitted and the lower validation RMSE kept: behind the thermal lag for a drive "
+        "voltage (cascade, cascade-preisach), on the input itself for any other input (eupi, preisach); thresholds and "
+        "tilts trained), eupi (paper eq. 2), cascade (thermal + EUPI), cascade-NAME (thermal + another registered "
+        "hysteresis model), joule (eq. 7 lag), or any other registered hysteresis model (preisach); default auto",
     )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
     p.add_argument(

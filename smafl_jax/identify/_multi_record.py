@@ -158,12 +158,13 @@ def _joint_fit(
 ):  # fmt: skip
     """The model choice of `fit_record` on several records (all samples train); returns ``(FitResult, info)``."""
     from ..models._hysteresis import hysteresis_of
-    from ..report._report_fit import structure_start
+    from ..report._report_fit import joint_steps, structure_start
     from ._choose import screen_start
     from ._fit import default_trainable, fit
 
     combo = _combined(records)
     structure, thresholds, tilts, start, notes = structure_start(model, combo, thresholds, tilts, grid)
+    max_steps = joint_steps(start, max_steps, notes)
     weights = [np.ones(len(r)) for r in records]
     screening, init, screen_info = None, "auto", {}
     if hysteresis_of(start) is not None:  # as `fit_record`: every model with a hysteresis part is screened

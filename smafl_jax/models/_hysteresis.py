@@ -89,6 +89,28 @@ class AbstractHysteresis(eqx.Module):
     extendable = True
     #: Evaluation forms `with_method` switches between (`model_with_method`); () for a model with one form.
     evaluation_methods = ()
+    #: `smafl fit` refines the profiled start jointly (gradient steps on weights, grid groups, thermal rate and start).
+    #: False for a class whose only nonlinear parameters in a fit are the thermal rate and start, which the profiled
+    #: start already optimises with the weights solved exactly: the joint steps then cost time and gain nothing.
+    refine_jointly = True
+
+    def screening_grid(self) -> AbstractHysteresis:
+        """A cheaper model of the same class and range that the start screening compares its candidates on (output
+        sign, hysteresis input, memory rule, thermal start; `smafl_jax.identify.screen_start`); the chosen start is
+        then finished on this model's own grid (`on_grid_of`).  Default: the model itself."""
+        return self
+
+    def on_grid_of(self, fine: AbstractHysteresis) -> AbstractHysteresis:
+        """This model's range, orientation and initial-state rule on the grid of ``fine`` (the model `screening_grid`
+        was taken from), weights untrained.  Default: itself (its screening grid is its own)."""
+        del fine
+        return self
+
+    @classmethod
+    def for_cascade(cls, u_max) -> AbstractHysteresis:
+        """Untrained model behind a Joule cascade's thermal lag, for drives in ``[0, u_max]`` (`smafl fit --model
+        cascade-NAME`): the class's default grid unless the class says otherwise."""
+        return cls.from_range(0.0, u_max)
 
     # -- construction --------------------------------------------------------
     @classmethod

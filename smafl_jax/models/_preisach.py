@@ -91,6 +91,17 @@ class Preisach(AbstractHysteresis):
 
     INITS = _INITS
     RULE_INITS = _INITS
+    #: The relay weights are solved exactly (non-negative least squares) at every profiled start; the joint LM over
+    #: softplus weights ended at or above that start, or was rejected on validation, on 5 of 6 records of the second
+    #: independent plant after up to 300 steps (session 20, experiments/results/plant_b_probes.jsonl).
+    refine_jointly = False
+    #: Levels behind a cascade's thermal lag (the default grid): 12 levels held out 2.7-13.5x the noise on plant-B
+    #: records where 24 held out 1.4-3.8x (session 20).
+    CASCADE_LEVELS = 24
+    #: Levels of the start screening's candidates (`screening_grid`): each candidate profiles the relay weights over a
+    #: grid of thermal rates, and the non-negative least squares of 300 relays made the screening 2-3x slower than the
+    #: rest of the fit; the chosen start is finished on the full grid.
+    SCREEN_LEVELS = 12
 
     w: jnp.ndarray = positive()  # (n (n+1) / 2,) relay weights, np.tril_indices(n) order (i: up level, j: down level)
     offset: jnp.ndarray
@@ -145,6 +156,23 @@ class Preisach(AbstractHysteresis):
             linear=bool(linear),
             orientation=int(orientation),
         )
+
+    def screening_grid(self):
+        """This model on `SCREEN_LEVELS` levels (itself when its grid is no finer)."""
+        if self.n_levels <= self.SCREEN_LEVELS:
+            return self
+        return self.with_range(float(self.u_ref), float(self.u_ref + self.u_span), n_levels=self.SCREEN_LEVELS)
+
+    def on_grid_of(self, fine):
+        """This model's range, ``init``, orientation and options with ``fine``'s number of levels (weights zero)."""
+        if fine.n_levels == self.n_levels:
+            return self
+        return self.with_range(float(self.u_ref), float(self.u_ref + self.u_span), n_levels=fine.n_levels)
+
+    @classmethod
+    def for_cascade(cls, u_max):
+        """Untrained relay grid over ``[0, u_max]`` with `CASCADE_LEVELS` levels."""
+        return cls.from_range(0.0, u_max, n_levels=cls.CASCADE_LEVELS)
 
     def with_range(self, u_min, u_max, **options):
         """Untrained grid with this one's size and options for inputs in ``[u_min, u_max]``."""
