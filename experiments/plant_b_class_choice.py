@@ -17,7 +17,11 @@ import math
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results"
-SUFFIXES = ("_model_cascade-preisach_max-steps_100", "_model_cascade-preisach_max-steps_200")  # first found wins
+SUFFIXES = (  # the latest code first: max-steps 50 = final session-20 code, 100 = before the warm refit, 200 = mixed
+    "_model_cascade-preisach_max-steps_50",
+    "_model_cascade-preisach_max-steps_100",
+    "_model_cascade-preisach_max-steps_200",
+)
 
 
 def _gm(v):
@@ -29,12 +33,13 @@ def main() -> None:
     for line in (RESULTS / "plant_b_default_fit.jsonl").read_text().splitlines():
         d = json.loads(line)
         eupi[d["name"]] = d
-    pre = {}
+    pre, rank = {}, {}
     for line in (RESULTS / "plant_b_probes.jsonl").read_text().splitlines():
         d = json.loads(line)
-        for suf in SUFFIXES:
-            if d["name"].endswith(suf) and d.get("returncode") == 0:
-                pre.setdefault(d["name"][: -len(suf)], d)
+        for i, suf in enumerate(SUFFIXES):
+            name = d["name"][: -len(suf)]
+            if d["name"].endswith(suf) and d.get("returncode") == 0 and i <= rank.get(name, len(SUFFIXES)):
+                pre[name], rank[name] = d, i  # the latest code's fit of the record (the last such line)
     rows = []
     print("| record | plant | EUPI cascade val / held-out | Preisach cascade val / held-out | auto chooses | held-out |")
     print("|---|---|---|---|---|---|")
