@@ -111,3 +111,25 @@ def test_model_auto_on_a_quasi_static_voltage_record_compares_the_static_classes
     assert not any("static model on a drive voltage" in n for n in doc["notes"])  # chosen on held-out error: no warning
     assert doc["metrics"]["validation"]["rmse"] == pytest.approx(rows[choice["chosen"]], rel=1e-12)
     assert (thermal_of(model) is not None) == choice["chosen"].startswith("cascade")
+
+
+def test_model_auto_refits_only_the_kept_structure(tmp_path, monkeypatch):
+    import smafl_jax.report._report_fit as report_fit  # private: counts the whole-record refits
+
+    r = indep_direct.make_record(5, "preisach", "steps", n=300, dt=10.0, u_lo=0.2, u_span=6.0)
+    path = tmp_path / "steps.csv"
+    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
+               comments="", fmt="%.9g")  # fmt: skip
+    rec = sj.load_record(path)
+    refits, refit_whole = [], report_fit._refit_whole
+    monkeypatch.setattr(report_fit, "_refit_whole", lambda *a, **k: refits.append(a[1]) or refit_whole(*a, **k))
+    pinned = dict(max_steps=0, grid=SMALL, orientation="rises", sees="voltage", thermal_start="steady", memory="descended")
+    model, doc, _ = fit_record(rec, **pinned)
+    choice = doc["settings"]["structure_choice"]
+    assert len(choice["candidates"]) >= 2 and doc["metrics"]["whole_record"] is not None
+    # every candidate was fitted on the split, only the kept one on the whole record
+    assert refits == [choice["chosen"]], (refits, choice["chosen"])
+    # and the saved model is the one a fit of that structure alone saves
+    alone, doc1, _ = fit_record(rec, model=choice["chosen"], thresholds=True, tilts=True, **pinned)
+    assert sj.model_to_dict(model) == sj.model_to_dict(alone)
+    assert doc1["metrics"]["validation"] == doc["metrics"]["validation"]

@@ -281,7 +281,7 @@ def fit_records(
     leave-one-record-out on a directly measured input fits every registered hysteresis class and keeps the lowest
     mean held-out RMSE (`smafl_jax.report.choose_structure`; fit.json ``settings.structure_choice``).
     """
-    from ..report._report_fit import choose_structure
+    from ..report._report_fit import Candidate, choose_structure
 
     records = [records] if hasattr(records, "u") else list(records)
     if model != "auto" or len(records) < 2 or fit_record_kwargs.get("split", "auto") == "none":
@@ -290,7 +290,7 @@ def fit_records(
     # model auto: a directly measured input compares the hysteresis classes on the leave-one-record-out mean
     return choose_structure(
         records[0],
-        lambda name, opts: _fit_records_structure(records, model=name, progress=progress, **opts),
+        lambda name, opts: Candidate.done(_fit_records_structure(records, model=name, progress=progress, **opts)),
         fit_record_kwargs,
         progress,
         validation="leave-one-record-out mean",

@@ -9,7 +9,9 @@ the measured output range *of that subset*.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -42,6 +44,25 @@ from ._provenance import fit_header, record_data, versions
 __all__ = ["MODELS", "build_model", "choose_structure", "fit_record", "write_fit_outputs", "versions"]
 
 from .._choices import HYSTERESIS, MODELS
+
+
+class Candidate(NamedTuple):
+    """One structure's split fit for `choose_structure`: the split ``model``, its ``metrics`` (``train``,
+    ``validation``), the profiled thermal rate ``profile_k1`` (None without a lag), and ``finish()`` -> ``(model, doc,
+    extra)``: the rest of the fit (for one record: the whole-record refit and fit.json), run only for the structure
+    that is kept (on the benchmark record the losing class's refit took 8 s of 90)."""
+
+    model: Any
+    metrics: dict[str, Any]
+    profile_k1: float | None
+    finish: Callable[[], tuple[Any, dict[str, Any], Any]]
+
+    @classmethod
+    def done(cls, result: tuple[Any, dict[str, Any], Any]) -> Candidate:
+        """A fit that is already finished (the multi-record fit: its joint fit is part of what is compared)."""
+        model, doc, _ = result
+        return cls(model, doc["metrics"], (doc.get("solver") or {}).get("profile_k1"), lambda: result)
+
 
 K2_NOTE = (
     "k2 is not identified by a cascade fit: the hysteresis sees sqrt(theta k1/k2) and theta is "
@@ -137,14 +158,18 @@ def fit_record(record, *, model="auto", progress=False, **options):
     if model != "auto" or options.get("split") == "none":  # split none: no validation error to compare classes on
         return _fit_structure(record, model=model, progress=progress, **options)
     return choose_structure(
-        record, lambda name, opts: _fit_structure(record, model=name, progress=progress, **opts), options, progress
+        record,
+        lambda name, opts: _fit_structure(record, model=name, progress=progress, defer_refit=True, **opts),
+        options,
+        progress,
     )
 
 
 def choose_structure(record, fit_one, options, progress, validation="validation"):
-    """``--model auto``: fit every structure of `auto_candidates` with ``fit_one(name, options) -> (model, doc, extra)``
-    and keep the lowest ``doc["metrics"]["validation"]`` RMSE; returns the winner's ``(model, doc, extra)`` with
-    ``settings.structure_choice`` (each candidate's validation RMSE and e_r, train RMSE, seconds) and a first note.
+    """``--model auto``: fit every structure of `auto_candidates` with ``fit_one(name, options) -> Candidate`` and keep
+    the lowest validation RMSE (``Candidate.metrics["validation"]``); returns the winner's ``finish()``, ``(model, doc,
+    extra)``, with ``settings.structure_choice`` (each candidate's validation RMSE and e_r, train RMSE, seconds) and a
+    first note.  Only the winner is finished (for one record: refitted on the whole record).
 
     Shared by the one-record fit (``validation``: the split's validation samples) and the multi-record fit (the
     leave-one-record-out mean).  A drive voltage: the default cascade is fitted first as ``"auto"``, then every other
@@ -157,11 +182,11 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     if candidates[0] not in HYSTERESIS:  # a drive voltage: the default cascade first, as `fit_one("auto")` fits it
         t0 = time.perf_counter()
         first = fit_one("auto", options)
-        runs.append((candidates[0], *first, time.perf_counter() - t0))
-        th = thermal_of(first[0])
+        runs.append((candidates[0], first, time.perf_counter() - t0))
+        th = thermal_of(first.model)
         # the profiled k1 (gains solved at each rate) or the refined one: the refinement can trade a lag for hysteresis
         # memory on a record that has no lag to show (measured: SMA wing, profiled k1 1.08 1/s, refined slower)
-        k_prof = (first[1].get("solver") or {}).get("profile_k1")
+        k_prof = first.profile_k1
         rates = [] if th is None else [float(th.k1), *([float(k_prof)] if k_prof else [])]
         fast = [k for k in rates if th.settles_within(record.dt, k)]
         if fast:
@@ -174,29 +199,33 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
             )
             candidates = (*candidates, *HYSTERESIS)
         if len(candidates) == 1:
-            return first
+            return first.finish()
     options = dict(options)
     for k in ("thresholds", "tilts"):  # auto's defaults: trained (a class without those groups ignores them)
         options[k] = True if options.get(k) is None else options[k]
     for name in candidates[len(runs) :]:
         say(f"model auto: fitting {name} ({len(runs) + 1}/{len(candidates)} candidates)", progress)
         t0 = time.perf_counter()
-        runs.append((name, *fit_one(name, options), time.perf_counter() - t0))
-    scored = [r for r in runs if r[2]["metrics"]["validation"] is not None]
+        runs.append((name, fit_one(name, options), time.perf_counter() - t0))
+    scored = [r for r in runs if r[1].metrics["validation"] is not None]
     if not scored:  # no validation error (split none): nothing to compare on; the first (default) class is kept
-        name, final, doc, extra, _ = runs[0]
+        name, kept, _ = runs[0]
         how = f"no {validation} error to compare on: the first candidate is kept"
     else:
-        name, final, doc, extra, _ = min(scored, key=lambda r: _rmse_or_inf(r[2]["metrics"]["validation"]))
+        name, kept, _ = min(scored, key=lambda r: _rmse_or_inf(r[1].metrics["validation"]))
         how = f"lowest {validation} RMSE"
+    if len(runs) > 1:
+        say(f"model auto: {name} kept ({how})", progress)
+    t0 = time.perf_counter()
+    final, doc, extra = kept.finish()
     table = [
         {
             "structure": n,
-            "validation": d["metrics"]["validation"] and {k: d["metrics"]["validation"][k] for k in ("rmse", "e_r_percent")},
-            "train_rmse": d["metrics"]["train"]["rmse"],
-            "seconds": sec,
+            "validation": c.metrics["validation"] and {k: c.metrics["validation"][k] for k in ("rmse", "e_r_percent")},
+            "train_rmse": c.metrics["train"]["rmse"],
+            "seconds": sec + (time.perf_counter() - t0 if c is kept else 0.0),
         }
-        for n, _, d, _, sec in runs
+        for n, c, sec in runs
     ]
     doc["settings"] = {**doc["settings"], "model": "auto", "structure_choice": {"candidates": table, "chosen": name, "on": how}}
     doc["notes"] = [
@@ -207,7 +236,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
             else f"{t['structure']} (no {validation} error)"
             for t in table
         )
-        + f" -> {name} ({how})",
+        + f" -> {name} ({how}; only the kept structure is refitted on the whole record)",
         # the cascade fitted as "auto" said it too; a static class chosen here on held-out error is no user's mistake
         *(n for n in doc["notes"] if not n.startswith(("model auto -> ", STATIC_ON_DRIVE))),
     ]
@@ -248,8 +277,12 @@ def _fit_structure(
     refit=True,
     gain_prior=GAIN_PRIOR,
     progress=False,
+    defer_refit=False,
 ):
-    """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names)."""
+    """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names).
+
+    ``defer_refit``: return a `Candidate` after the split fit, whose ``finish()`` makes the whole-record refit and
+    fit.json, so that `choose_structure` refits only the class it keeps."""
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
     if solver not in SOLVERS:
@@ -407,94 +440,103 @@ def _fit_structure(
         "train": metrics(record.y[train], yhat[train]),
         "validation": metrics(record.y[val], yhat[val]) if val.any() else None,
     }
-    split_model, final = res.model, res.model
+    split_model = res.model
     if val.any():
         split_info = {**split_info, "coverage": _validation_coverage(split_model, record, train, val)}
         if "warning" in split_info["coverage"]:
             notes.append("validation coverage: " + split_info["coverage"]["warning"])
-    if do_refit:
-        # The split chose the structure (orientation, hysteresis input, refinement or not) and measured
-        # the held-out error; the model a user deploys is then fitted on every sample with those choices.
-        # On independent cold-start records a fit starved of the last 30 % extrapolated 10-50x worse.
-        final = finals[chosen] if chosen in finals else deploy((label, res, yhat, refinement))
-        y_all = np.asarray(simulate(final, record.u, record.dt))
-        mets["whole_record"] = metrics(record.y, y_all) if np.all(np.isfinite(y_all)) else None
-        notes.append(
-            "validation metrics are those of the model fitted on the training samples only; the saved model is refitted "
-            "on the whole record with the same structure choices (split model in fit.json 'split_model'; --no-refit keeps it)"
-        )
-    if thermal_of(final) is not None:  # a thermal lag in front of a hysteresis: k2 cancels (a cascade)
-        notes.append(K2_NOTE)
-        prof = (res.info or {}).get("profile") or screen_info.get("profile") or {}
-        if prof.get("at_grid_edge"):
-            notes.append(
-                f"the best k1 ({prof.get('k1'):.4g} 1/s) lies at the edge of the candidate grid: the record does not "
-                "pin down the thermal time constant (e.g. quasi-static data)"
-            )
-    gp = (res.info or {}).get("gain_prior")
-    if gp and gp["largest_gain"] < 0.5 * gp["largest_gain_free"]:
-        # worth saying: the prior changed what a user will see on a new run (`smafl_jax.identify._gain_prior`)
-        notes.append(
-            f"gain prior (kappa {gp['kappa']:g}, --gain-prior): largest operator gain {gp['largest_gain_free']:.4g} -> "
-            f"{gp['largest_gain']:.4g} against an output range of {gp['output_range']:.4g} (training RMSE "
-            f"{gp['rmse_free']:.4g} -> {gp['rmse']:.4g}): gains far beyond the output range that cancel the offset "
-            "break on a new run; --gain-prior none keeps the least-squares gains"
-        )
-    if not res.converged:
-        notes.append(f"solver: {res.message}")
-    doc = {
-        **fit_header(final),
-        "split_model": model_to_dict(split_model) if final is not split_model else None,
-        "metrics": mets,
-        "data": record_data(record),
-        "split": split_info,
-        "settings": {
-            "model": model,
-            "structure": structure,
-            "orientation": orientation,
-            "thermal_start": thermal_start,
-            "sees": sees,
-            "memory": memory,
-            "memory_used": memory_used,
-            "start_screening": screening,
-            "split": split_info["kind"],
-            "val_fraction": val_fraction,
-            "solver": solver,
-            "max_steps": max_steps,
-            "train_thresholds": thresholds,
-            "train_tilts": tilts,
-            "grid": grid or {},
-            "init": (res.info or {}).get("init"),
-            "fit_view": view_info,
-            "gain_prior": gain_prior,
-        },
-        "solver": {
-            "name": res.solver,
-            "loss": res.loss,
-            "init_loss": res.init_loss,
-            "n_steps": res.n_steps,
-            "converged": res.converged,
-            "message": res.message,
-            "seconds": seconds,
-            "refinement": refinement,
-            "profile_k1": ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1"),
-            "gain_prior": (res.info or {}).get("gain_prior"),
-        },
-        "notes": notes,
-        "versions": versions(),
-    }
-    from ..identify._multi_record import add_record_extras  # baselines, data checks, loading notes, training input range
 
-    # the saved model's own training samples: every sample after the whole-record refit, else the split's training part
-    fitted_on = np.ones(len(record), bool) if final is not split_model else train
-    add_record_extras(doc, record, train, val, yhat, fitted_on=fitted_on)
-    x_eff = effective_values(final, record.u, record.dt)
-    if x_eff is not None and np.all(np.isfinite(x_eff)):
-        # what the saved model's hysteresis saw in training: simulate/control/sweep warn when a new input leaves it
-        doc["data"]["effective_input_range"] = value_range(x_eff, fitted_on)
-        doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
-        doc["data"]["trained_branches"] = trained_branches(x_eff, fitted_on)
-    return final, doc, (train, val, yhat)
+    def finish():
+        """The whole-record refit (when asked) and fit.json: ``(model, doc, (train, val, yhat))``."""
+        final = split_model
+        if do_refit:
+            # The split chose the structure (orientation, hysteresis input, refinement or not) and measured
+            # the held-out error; the model a user deploys is then fitted on every sample with those choices.
+            # On independent cold-start records a fit starved of the last 30 % extrapolated 10-50x worse.
+            final = finals[chosen] if chosen in finals else deploy((label, res, yhat, refinement))
+            y_all = np.asarray(simulate(final, record.u, record.dt))
+            mets["whole_record"] = metrics(record.y, y_all) if np.all(np.isfinite(y_all)) else None
+            notes.append(
+                "validation metrics are those of the model fitted on the training samples only; the saved model is refitted "
+                "on the whole record with the same structure choices (split model in fit.json 'split_model'; --no-refit keeps it)"
+            )
+        if thermal_of(final) is not None:  # a thermal lag in front of a hysteresis: k2 cancels (a cascade)
+            notes.append(K2_NOTE)
+            prof = (res.info or {}).get("profile") or screen_info.get("profile") or {}
+            if prof.get("at_grid_edge"):
+                notes.append(
+                    f"the best k1 ({prof.get('k1'):.4g} 1/s) lies at the edge of the candidate grid: the record does not "
+                    "pin down the thermal time constant (e.g. quasi-static data)"
+                )
+        gp = (res.info or {}).get("gain_prior")
+        if gp and gp["largest_gain"] < 0.5 * gp["largest_gain_free"]:
+            # worth saying: the prior changed what a user will see on a new run (`smafl_jax.identify._gain_prior`)
+            notes.append(
+                f"gain prior (kappa {gp['kappa']:g}, --gain-prior): largest operator gain {gp['largest_gain_free']:.4g} -> "
+                f"{gp['largest_gain']:.4g} against an output range of {gp['output_range']:.4g} (training RMSE "
+                f"{gp['rmse_free']:.4g} -> {gp['rmse']:.4g}): gains far beyond the output range that cancel the offset "
+                "break on a new run; --gain-prior none keeps the least-squares gains"
+            )
+        if not res.converged:
+            notes.append(f"solver: {res.message}")
+        doc = {
+            **fit_header(final),
+            "split_model": model_to_dict(split_model) if final is not split_model else None,
+            "metrics": mets,
+            "data": record_data(record),
+            "split": split_info,
+            "settings": {
+                "model": model,
+                "structure": structure,
+                "orientation": orientation,
+                "thermal_start": thermal_start,
+                "sees": sees,
+                "memory": memory,
+                "memory_used": memory_used,
+                "start_screening": screening,
+                "split": split_info["kind"],
+                "val_fraction": val_fraction,
+                "solver": solver,
+                "max_steps": max_steps,
+                "train_thresholds": thresholds,
+                "train_tilts": tilts,
+                "grid": grid or {},
+                "init": (res.info or {}).get("init"),
+                "fit_view": view_info,
+                "gain_prior": gain_prior,
+            },
+            "solver": {
+                "name": res.solver,
+                "loss": res.loss,
+                "init_loss": res.init_loss,
+                "n_steps": res.n_steps,
+                "converged": res.converged,
+                "message": res.message,
+                "seconds": seconds,
+                "refinement": refinement,
+                "profile_k1": ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1"),
+                "gain_prior": (res.info or {}).get("gain_prior"),
+            },
+            "notes": notes,
+            "versions": versions(),
+        }
+        from ..identify._multi_record import add_record_extras  # baselines, data checks, loading notes, training input range
+
+        # the saved model's own training samples: every sample after the whole-record refit, else the split's training part
+        fitted_on = np.ones(len(record), bool) if final is not split_model else train
+        add_record_extras(doc, record, train, val, yhat, fitted_on=fitted_on)
+        x_eff = effective_values(final, record.u, record.dt)
+        if x_eff is not None and np.all(np.isfinite(x_eff)):
+            # what the saved model's hysteresis saw in training: simulate/control/sweep warn when a new input leaves it
+            doc["data"]["effective_input_range"] = value_range(x_eff, fitted_on)
+            doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
+            doc["data"]["trained_branches"] = trained_branches(x_eff, fitted_on)
+        return final, doc, (train, val, yhat)
+
+    if defer_refit:
+        profile_k1 = ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1")
+        return Candidate(split_model, mets, profile_k1, finish)
+    return finish()
 
 
 #: Full-rate LM steps after a fit on the decimated view (`_decimate`).
