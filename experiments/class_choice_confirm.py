@@ -9,7 +9,9 @@ cells).  Every record is fitted as BOTH candidates that `--model auto` fits (`sm
 --tilts` and `--model cascade-preisach`, CLI in a subprocess, first 70 %), then each saved model is scored on the last
 30 % (RMSE / noise SD), and each split model's fold SSEs and validation SSE are computed (`identify._choose.fold_sse`).
 
-    python experiments/class_choice_confirm.py                 # the fits (parallel processes; CF_WORKERS, CF_SECONDS)
+    python experiments/class_choice_confirm.py                 # the fits, in parallel processes (results to $OUT)
+    # environment: CF_WORKERS (14), CF_SECONDS (470: no new fit after it), CF_SEEDS_B ('4 5'), CF_SEEDS_A ('23'),
+    # CF_CLASSES ('E P'), CF_ONLY (a record-name substring); work folder /tmp/cf_work
     python experiments/class_choice_confirm.py --table [JSONL]  # the rules compared on the results
 
 Measured (session 21, the fits run on a lent 16-core machine, 15 processes, 495 s): results in
