@@ -450,3 +450,16 @@ def test_coverage_matches_a_plain_loop(rng):
             total += 1
             hits += any(dd == d and abs(xx - x) <= 0.02 * span for xx, dd in seen)
     assert coverage(sp)["covered_fraction"] == pytest.approx(hits / total)
+
+
+def test_temperature_and_pressure_inputs_are_recognised(tmp_path):
+    t = np.arange(12) * 0.5
+    rows = "".join(f"{a},{20 + k},{10 + 0.1 * k}\n" for k, a in enumerate(t))
+    r = load_record(write(tmp_path, "time_s,temperature_C,length_mm\n" + rows))
+    assert (r.input_name, r.output_name) == ("temperature_C", "length_mm")
+    r = load_record(write(tmp_path, "time_s,pressure,displacement_mm\n" + rows))
+    assert (r.input_name, r.output_name) == ("pressure", "displacement_mm")
+    # a drive voltage wins over a logged temperature, which stays an extra column
+    rows3 = "".join(f"{a},{20 + k},{1 + k % 3},{10 + 0.1 * k}\n" for k, a in enumerate(t))
+    r = load_record(write(tmp_path, "time_s,temperature_C,voltage_V,length_mm\n" + rows3))
+    assert r.input_name == "voltage_V" and "temperature_C" in r.extra

@@ -53,8 +53,10 @@ from .record import DEFAULT_DT_RTOL, Record, check_time
 
 __all__ = ["load_record", "load_records", "file_sha256", "resample_record", "INPUT_CANDIDATES", "OUTPUT_CANDIDATES"]
 
-INPUT_CANDIDATES = ("voltage_V", "voltage", "input", "u")
-OUTPUT_CANDIDATES = ("displacement_mm", "displacement", "output", "y", "length_signal")
+#: Column names taken as the input / output without --input / --output, first match wins (a drive voltage before a
+#: directly measured input, so a file that also logs a temperature is still fitted from its voltage).
+INPUT_CANDIDATES = ("voltage_V", "voltage", "input", "u", "temperature_C", "temperature", "pressure")
+OUTPUT_CANDIDATES = ("displacement_mm", "displacement", "output", "y", "length_signal", "length_mm", "length")
 DELIMITERS = (",", ";", "\t")
 _DELIM_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Gaps at least this many sample times long are listed one by one in ``processing``.
