@@ -185,8 +185,12 @@ def table(path=RESULTS):
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for label, rule in rules.items():
-        for kind, plant in (("B", "B (seeds 4, 5)"), ("A", "A (seed 23)")):
+        for kind in ("B", "A"):
             names = [n for n in fits if fits[n]["E"]["kind"] == kind]
+            if not names:
+                continue
+            seeds = sorted({int(n[1:].split("_")[0]) for n in names})
+            plant = f"{kind} (seeds {', '.join(map(str, seeds))})"
             e = [fits[n]["E"]["held_x"] for n in names]
             h = [fits[n]["P"]["held_x"] if rule(fits[n]) else fits[n]["E"]["held_x"] for n in names]
             best = [min(fits[n]["P"]["held_x"], fits[n]["E"]["held_x"]) for n in names]
