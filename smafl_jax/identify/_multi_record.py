@@ -302,7 +302,7 @@ def _fit_records_structure(
 ) -> tuple[Any, dict[str, Any], dict[str, Any]]:
     """`fit_records` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names)."""
     from ..models._hysteresis import thermal_of
-    from ..report._provenance import fit_header, versions
+    from ..report._provenance import fit_header, solver_entry, versions
     from ..report._report_fit import K2_NOTE
     from ._fit import SOLVERS
 
@@ -497,18 +497,13 @@ def _fit_records_structure(
             "grid": opts["grid"] or {},
             "init": (res.info or {}).get("init"),
         },
-        "solver": {
-            "name": res.solver,
-            "loss": res.loss,
-            "init_loss": res.init_loss,
-            "n_steps": res.n_steps,
-            "converged": res.converged,
-            "message": res.message,
-            "seconds": seconds,
-            "total_seconds_with_folds": time.perf_counter() - t_all,
-            "profile_k1": info["profile"].get("k1"),
-            "gain_prior": (res.info or {}).get("gain_prior"),
-        },
+        "solver": solver_entry(
+            res,
+            seconds,
+            total_seconds_with_folds=time.perf_counter() - t_all,
+            profile_k1=info["profile"].get("k1"),
+            gain_prior=(res.info or {}).get("gain_prior"),
+        ),
         "notes": notes,
         "versions": versions(),
     }

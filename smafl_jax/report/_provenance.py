@@ -30,6 +30,20 @@ def versions(extra: tuple[str, ...] = ()) -> dict:
     return out
 
 
+def solver_entry(res, seconds: float, **extra) -> dict:
+    """fit.json ``solver``: what the identification's `FitResult` says about the solve, the seconds, then ``extra``."""
+    return {
+        "name": res.solver,
+        "loss": res.loss,
+        "init_loss": res.init_loss,
+        "n_steps": res.n_steps,
+        "converged": res.converged,
+        "message": res.message,
+        "seconds": seconds,
+        **extra,
+    }
+
+
 def fit_header(model) -> dict:
     """The first entries of a fit.json-format file: ``format``, ``version`` and the ``model``."""
     from .._io import FORMAT, VERSION, model_to_dict

@@ -39,7 +39,7 @@ from ..models._joule_lag import JouleLag
 from ..models._range import EFFECTIVE_RULE, effective_values, trained_branches, value_range
 from ..models._simulate import simulate
 from ..models._thermal import JouleThermal
-from ._provenance import fit_header, record_data, versions
+from ._provenance import fit_header, record_data, solver_entry, versions
 
 __all__ = ["MODELS", "build_model", "choose_structure", "fit_record", "write_fit_outputs", "versions"]
 
@@ -505,18 +505,13 @@ def _fit_structure(
                 "fit_view": view_info,
                 "gain_prior": gain_prior,
             },
-            "solver": {
-                "name": res.solver,
-                "loss": res.loss,
-                "init_loss": res.init_loss,
-                "n_steps": res.n_steps,
-                "converged": res.converged,
-                "message": res.message,
-                "seconds": seconds,
-                "refinement": refinement,
-                "profile_k1": ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1"),
-                "gain_prior": (res.info or {}).get("gain_prior"),
-            },
+            "solver": solver_entry(
+                res,
+                seconds,
+                refinement=refinement,
+                profile_k1=((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1"),
+                gain_prior=(res.info or {}).get("gain_prior"),
+            ),
             "notes": notes,
             "versions": versions(),
         }
