@@ -11,8 +11,10 @@ cells).  Every record is fitted as BOTH candidates that `--model auto` fits (`sm
 
     python experiments/class_choice_confirm.py                 # the fits, in parallel processes (results to $OUT)
     # environment: CF_WORKERS (14), CF_SECONDS (470: no new fit after it), CF_SEEDS_B ('4 5'), CF_SEEDS_A ('23'),
-    # CF_CLASSES ('E P'), CF_ONLY (a record-name substring); work folder /tmp/cf_work
+    # CF_CLASSES ('E P'; 'G': the Gaussian-density Preisach cascade), CF_ONLY (a record-name substring), CF_RATES
+    # (plant-B sample rates, e.g. '25 5'); work folder /tmp/cf_work
     python experiments/class_choice_confirm.py --table [JSONL]  # the rules compared on the results
+    python experiments/class_choice_confirm.py --classes JSONL...  # auto over E+P vs E+P+G (session 22)
 
 Measured (session 21, the fits run on a lent 16-core machine, 15 processes, 495 s): results in
 experiments/results/class_choice_confirm_session21.jsonl; the table is in experiments/results/class_choice_confirm.md.
@@ -37,7 +39,11 @@ WORK = Path("/tmp/cf_work")
 WORK.mkdir(exist_ok=True)
 DEADLINE = time.time() + float(os.environ.get("CF_SECONDS", "470"))
 WORKERS = int(os.environ.get("CF_WORKERS", "14"))
-CLASSES = {"E": ["--model", "cascade", "--thresholds", "--tilts"], "P": ["--model", "cascade-preisach"]}
+CLASSES = {
+    "E": ["--model", "cascade", "--thresholds", "--tilts"],
+    "P": ["--model", "cascade-preisach"],
+    "G": ["--model", "cascade-preisach-gauss"],
+}
 
 
 def records():
@@ -208,14 +214,63 @@ def table(path=RESULTS):
         )
 
 
+def table_classes(*paths):
+    """Session 22: auto's rule (lower validation RMSE) over the EUPI and Preisach cascades (E, P) against the same rule
+    with the Gaussian-density Preisach cascade (G) as a third class, on records fitted as all three (rows of any of
+    ``paths``; a record's later rows replace earlier ones of the same class)."""
+    fits = {}
+    for path in paths:
+        for line in Path(path).read_text().splitlines():
+            r = json.loads(line)
+            if r.get("held_x") is not None:
+                fits.setdefault(r["name"], {})[r["cls"]] = r
+    fits = {n: v for n, v in fits.items() if all(c in v for c in "EPG")}
+
+    def auto(f, classes):
+        return f[min(classes, key=lambda c: f[c]["val_rmse"])]["held_x"]
+
+    print(
+        "| plant | records | rule over | auto held-out gm | within 1.5x | within 3x | better than E+P by >10 % | worse than E+P by >10 % |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for kind in ("B", "A"):
+        names = [n for n in fits if fits[n]["E"]["kind"] == kind]
+        if not names:
+            continue
+        seeds = sorted({n[1:].split("_")[0] for n in names})
+        base = [auto(fits[n], "EP") for n in names]
+        for classes in ("E", "EP", "EG", "EPG"):
+            h = [auto(fits[n], classes) for n in names]
+            print(
+                f"| {kind} (seeds {', '.join(seeds)}) | {len(names)} | {'+'.join(classes)} | {_gm(h):.2f}x | {sum(x <= 1.5 for x in h)} | "
+                f"{sum(x <= 3 for x in h)} | {sum(a < b / 1.1 for a, b in zip(h, base))} | {sum(a > 1.1 * b for a, b in zip(h, base))} |"
+            )
+    print()
+    print("| record | E held-out | P held-out | G held-out | E val RMSE | P val RMSE | G val RMSE |")
+    print("|---|---|---|---|---|---|---|")
+    for n, f in fits.items():
+        print(
+            f"| {n} | {f['E']['held_x']:.2f}x | {f['P']['held_x']:.2f}x | {f['G']['held_x']:.2f}x | {f['E']['val_rmse']:.4g} | "
+            f"{f['P']['val_rmse']:.4g} | {f['G']['val_rmse']:.4g} |"
+        )
+
+
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["--classes"]:
+        table_classes(*sys.argv[2:])
+        sys.exit(0)
     if sys.argv[1:2] == ["--score"]:
         score(*sys.argv[2:4])
         sys.exit(0)
     if sys.argv[1:2] == ["--table"]:
         table(*sys.argv[2:3])
         sys.exit(0)
-    recs = [r for r in records() if os.environ.get("CF_ONLY", "") in r[1]]
+    rates = os.environ.get("CF_RATES", "").split()  # plant-B sample rates to keep (e.g. '25 5'); all when unset
+    recs = [
+        r
+        for r in records()
+        if os.environ.get("CF_ONLY", "") in r[1] and (not rates or r[0] != "B" or f"{r[2]['rate_hz']:g}" in rates)
+    ]
     jobs = []
     for kind, name, c in recs:
         d, truth = make(kind, name, c)

@@ -8,7 +8,11 @@ import JAX first (seconds), which `--help` should not pay.
 SOLVERS = ("lm", "gauss_newton", "bfgs", "lbfgsb", "projected_gradient")
 #: Registry of the hysteresis models (`smafl_jax.models._hysteresis.AbstractHysteresis`): CLI name -> "module:class".
 #: A new hysteresis model is one class in one module plus one line here (`smafl fit --model NAME`).
-HYSTERESIS = {"eupi": "models._eupi:EUPI", "preisach": "models._preisach:Preisach"}
+HYSTERESIS = {
+    "eupi": "models._eupi:EUPI",
+    "preisach": "models._preisach:Preisach",
+    "preisach-gauss": "models._preisach_gauss:GaussianPreisach",
+}
 #: Model structures `smafl fit --model` accepts.
 #: ``cascade`` is the Joule cascade with the EUPI (the paper's); ``cascade-NAME`` puts another registered hysteresis class
 #: behind the same thermal lag.

@@ -151,12 +151,23 @@ def test_posterior_samples_only_weights_and_noise(cls, rng):
     u = _input(rng, n=150)
     y = np.asarray(m.simulate(u)) + 0.01 * rng.standard_normal(u.shape[0])
     post = Posterior(m, (np.asarray(u), y), 1.0, linear="sample")
-    expected = sorted(m.linear_fields())
+    shape = _always_trained_shape(m)  # a class whose shape is always trained (GaussianPreisach) samples it too
+    expected = sorted([*m.linear_fields(), *shape])
     assert sorted({n.split("[")[0] for n in post.names_leaf} - {"noise.sigma"}) == expected
     assert post.names[-1] == "noise.sigma" and np.isfinite(post.log_prob(jnp.asarray(post.theta0)))
     assert all(post.priors[n].dist != "flat" for n in post.names_leaf)
     marg = Posterior(m, (np.asarray(u), y), 1.0, linear="marginalise")
-    assert marg.names == ["noise.sigma"] and np.isfinite(marg.log_prob(jnp.asarray(marg.theta0)))
+    assert sorted({n.split("[")[0] for n in marg.names}) == sorted([*shape, "noise.sigma"])
+    assert np.isfinite(marg.log_prob(jnp.asarray(marg.theta0)))
+
+
+def _always_trained_shape(h):
+    """Nonlinear fields a fit trains by default (not fixed, not linear weights), each with a prior of its own."""
+    return [
+        f
+        for f in h.nonlinear_priors()
+        if f not in h.fixed_fields() and f not in h.linear_fields() and getattr(h, f, None) is not None
+    ]
 
 
 @pytest.mark.parametrize("cls", MODELS, ids=IDS)

@@ -369,6 +369,11 @@ def test_default_priors_cover_exactly_the_linear_fields_with_their_sign_constrai
     # the columns of the linear fields partition the design matrix
     np.testing.assert_array_equal(np.sort(np.concatenate(list(columns.values()))), np.arange(nonneg.size))
     weights = set(post.names_leaf) - {"noise.sigma", "thermal.k1", "base.thermal.k1"}
+    # a class whose shape is always trained (GaussianPreisach) samples it with its own priors (`nonlinear_priors`)
+    shape = {f: p for f, p in h.nonlinear_priors().items() if f not in h.fixed_fields() and getattr(h, f, None) is not None}
+    for field, (dist, _, _) in shape.items():
+        assert post.priors[prefix + field].dist == dist
+    weights -= {prefix + f for f in shape}
     assert weights == {prefix + f for f in h.linear_fields()}  # the sampled weights are exactly the linear fields
     for field in h.linear_fields():
         prior = post.priors[prefix + field]

@@ -403,10 +403,20 @@ def _on_own_grid(model, fine, data, weights, u_hi, free_start, say):
     gains profiled: the thermal rate and start searched again (`refine_thermal_start`) when the start is free, else the
     gains solved at the screened rate.  The model itself when it was screened on its own grid."""
     h = hysteresis_of(model)
-    own = h.on_grid_of(fine)
-    if own is h:
+    starts = fine.adopt(h)
+    if len(starts) == 1 and starts[0] is h:
         return model
-    model = model.with_hysteresis(own)
+    if len(starts) > 1:
+        # a class with several starts from the screened model (`AbstractHysteresis.adopt`): the best profiled one
+        # at the screened thermal parameters goes on
+        scored = [(fit(model.with_hysteresis(s), data, weights=weights, solver=None, init="linear"), s) for s in starts]
+        best = min(scored, key=lambda r: r[0].loss if np.isfinite(r[0].loss) else np.inf)
+        say(
+            f"  {len(starts)} starts on the model's own structure: profiled losses "
+            + ", ".join(f"{r[0].loss:.4g}" for r in scored)
+        )
+        starts = (best[1],)
+    model = model.with_hysteresis(starts[0])
     if free_start and thermal_of(model) is not None and model.thermal.init == "given":
         loss, model, _ = refine_thermal_start(model, data, weights, u_hi)
     else:

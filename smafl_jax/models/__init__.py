@@ -48,12 +48,14 @@ from ._preisach import (
     solve_penalised,
     tikhonov_matrix,
 )
+from ._preisach_gauss import GaussianPreisach
 from ._range import branch_check, range_check, trained_branches
 from ._simulate import simulate, simulate_batch
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
 __all__ = [
     "AbstractHysteresis",
+    "GaussianPreisach",
     "hysteresis_of",
     "thermal_of",
     "hysteresis_models",

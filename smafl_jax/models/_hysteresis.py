@@ -106,6 +106,13 @@ class AbstractHysteresis(eqx.Module):
         del fine
         return self
 
+    def adopt(self, screened: AbstractHysteresis) -> tuple[AbstractHysteresis, ...]:
+        """Starts of this model's structure from ``screened``, the `screening_grid` model after the start screening
+        (its orientation, initial-state rule and what its weights say); the fit profiles each on the data and keeps
+        the best (`smafl_jax.identify._choose._on_own_grid`).  Default: ``screened`` on this model's grid
+        (`on_grid_of`), one start."""
+        return (screened.on_grid_of(self),)
+
     @classmethod
     def for_cascade(cls, u_max) -> AbstractHysteresis:
         """Untrained model behind a Joule cascade's thermal lag, for drives in ``[0, u_max]`` (`smafl fit --model
