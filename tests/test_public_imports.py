@@ -22,7 +22,8 @@ MARKER = "# private:"
 #: `smafl_jax.__all__` (sorted): change it here, on purpose, when the top-level API changes.
 PUBLIC_API = (
     "AbstractHysteresis", "Cascade", "ChainTooShortWarning", "ClosedLoop", "ControlResult", "ControlSweepResult",
-    "DataError", "Diagnosis", "EFFECTS", "EFFECT_NAMES", "EUPI", "ExtendedModel", "FitResult", "IICompensator",
+    "DataError", "Diagnosis", "EFFECTS", "EFFECT_NAMES", "EUPI", "ExtendedModel", "FitResult", "GaussianPreisach",
+    "IICompensator",
     "JouleLag", "JouleThermal", "PAPER_K1", "PAPER_K2", "PID", "POSITIVE_FLOOR", "Posterior", "Preisach", "Prior",
     "Recalibrated", "Record", "SOLVERS", "SampleRun", "SamplingResult", "SimulationResult", "SweepResult",
     "UserInputError", "as_fit_data", "atomic_savefig", "atomic_write_csv", "atomic_write_json", "atomic_write_text",
