@@ -1,6 +1,6 @@
 """Model classes (equinox PyTrees) and what every model needs.
 
-The hysteresis protocol (`AbstractHysteresis`) and its models (`EUPI`, `Preisach`), the Joule thermal lag
+The hysteresis protocol (`AbstractHysteresis`) and its models (`EUPI`, `Preisach`, `GaussianPreisach`), the Joule thermal lag
 (`JouleThermal`), the paper's eq. (7) model (`JouleLag`), the `Cascade`, the play operators and the
 models' evaluation-method rule, positivity constraints, initial-state rules, the jitted `simulate`
 entry points, padded calls and trained-range checks.

@@ -2,7 +2,7 @@
 
 `AbstractHysteresis` is the abstract `equinox.Module` that fitting (`smafl_jax.fit`), sampling
 (`Posterior`), control (`plant_step`, `IICompensator`), diagnosis and the effect catalogue
-(`ExtendedModel`) program against; the concrete models (`EUPI`, `Preisach`) are final classes.
+(`ExtendedModel`) program against; the concrete models (`EUPI`, `Preisach`, `GaussianPreisach`) are final classes.
 A hysteresis model is a rate-independent map with memory from a scalar input record ``x(k)`` to an
 output ``y(k)``, linear in its *linear weights* for fixed grids:
 
