@@ -32,6 +32,7 @@ from ._choose import (
     fitted_memory_start,
     refine_thermal_start,
     screen_start,
+    shared_screening,
 )
 from ._decimate import decimate_mask, decimate_record, fit_stride
 from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
@@ -71,6 +72,7 @@ __all__ = [
     "auto_candidates",
     "auto_structure",
     "screen_start",
+    "shared_screening",
     "refine_thermal_start",
     "fitted_memory_start",
     "COLD_FRACTION",

@@ -18,9 +18,14 @@ refinement can settle on any start temperature between cold and equilibrium.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+import copy
 import dataclasses
+import hashlib
 import time
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -35,6 +40,7 @@ __all__ = [
     "auto_structure",
     "auto_candidates",
     "screen_start",
+    "shared_screening",
     "rule_inits",
     "refine_thermal_start",
     "fitted_memory_start",
@@ -57,6 +63,45 @@ ORIENTATION_PRESCREEN = 10.0
 #: finished 0.079 (wrong sign) vs 0.097 (right sign).  The 20-minute PWM benchmark record is not a close call.
 #: Refining both signs doubles the fit time, so only the close calls pay it.
 ORIENTATION_AMBIGUITY = 1.5
+
+
+#: Screenings made inside `shared_screening`, by content key (`_screening_key`); None outside it.
+_SHARED = contextvars.ContextVar("smafl_shared_screening", default=None)
+
+
+@contextlib.contextmanager
+def shared_screening():
+    """Within this block `screen_start` makes each screening once: a second call whose screening model (the start on its
+    class's `AbstractHysteresis.screening_grid`), data, weights and options are identical reuses the first one's
+    screened candidates and finishes them on its own grid.  Why: ``--model auto`` fits the Preisach and the Gaussian
+    Preisach, which both screen on the same 12-level relay grid (measured: about 30 s of a 168 s benchmark fit ran
+    twice).  Scoped, so nothing outlives the call that opened it."""
+    token = _SHARED.set({})
+    try:
+        yield
+    finally:
+        _SHARED.reset(token)
+
+
+def _digest(h, x):
+    """Feed ``x`` (a PyTree of arrays, numbers, strings and None) into the hash ``h``, by value."""
+    leaves, treedef = jax.tree_util.tree_flatten(x)
+    h.update(str(treedef).encode())
+    for leaf in leaves:
+        if isinstance(leaf, (np.ndarray, jax.Array, np.generic, int, float, bool)):
+            a = np.asarray(leaf)
+            h.update(f"{a.dtype}{a.shape}".encode())
+            h.update(np.ascontiguousarray(a).tobytes())
+        else:
+            h.update(repr(leaf).encode())
+
+
+def _screening_key(coarse_start, data, weights, val_weights, options):
+    """Content key of one screening: equal keys give equal screenings (all inputs by value)."""
+    h = hashlib.sha256()
+    for part in (coarse_start, [tuple(d) for d in data], list(weights), val_weights, options):
+        _digest(h, part)
+    return h.hexdigest()
 
 
 #: Start logits of a fitted operator memory (`EUPI.with_fitted_memory`): where each operator sits between its bounds.
@@ -333,6 +378,33 @@ def screen_start(
     else:
         inputs, starts = (None,), (None,)
     say = progress_line if progress else (lambda msg: None)
+    memo = _SHARED.get()
+    options = (orientation, thermal_start, sees, k1_grid, memory, choose)
+    key = None if memo is None else _screening_key(start, data, _as_weights(weights, data), val_weights, options)
+    if key is not None and key in memo:
+        say("  start screening: identical to an earlier candidate's screening on the same grid, reused")
+        finished, table = copy.deepcopy(memo[key])
+    else:
+        finished, table = _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi,
+                                  k1_grid, memory, choose, say)  # fmt: skip
+        if key is not None:
+            memo[key] = copy.deepcopy((finished, table))
+    finished = [f for f in finished if f[1] <= ORIENTATION_AMBIGUITY * finished[0][1]]
+    model, _, info = finished[0]
+    model = _on_own_grid(model, fine, data, weights, u_hi, free_start, say)
+    if len(finished) > 1:
+        info = {**info, "alternatives": [_on_own_grid(f[0], fine, data, weights, u_hi, free_start, say) for f in finished[1:]]}
+        say(
+            "  output sign is a close call on the finished starts (losses "
+            + ", ".join(f"{'rises' if f[0].hysteresis.orientation > 0 else 'falls'} {f[1]:.6g}" for f in finished)
+            + "): both go to the refinement"
+        )
+    return model, table, info
+
+
+def _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi, k1_grid, memory, choose, say):
+    """The screening of `screen_start` on the screening grid: ``(finished, table)``, the finished starts ``[(model, loss,
+    info)]`` of each output sign kept, best first, and one table row per candidate."""
     table, results = [], {}  # results[(sign, input, start, memory rule)] = (loss, profiled model, key, info)
     t_all = time.perf_counter()
 
@@ -387,17 +459,7 @@ def screen_start(
         inputs, rest, results, table, candidate, report, data, weights, val_weights, free_start, u_hi, memory, inits[0], choose,
     )  # fmt: skip
     finished = sorted((f for sign in kept for f in _finish_sign(sign, *context, say, t_all)), key=lambda f: f[1])
-    finished = [f for f in finished if f[1] <= ORIENTATION_AMBIGUITY * finished[0][1]]
-    model, _, info = finished[0]
-    model = _on_own_grid(model, fine, data, weights, u_hi, free_start, say)
-    if len(finished) > 1:
-        info = {**info, "alternatives": [_on_own_grid(f[0], fine, data, weights, u_hi, free_start, say) for f in finished[1:]]}
-        say(
-            "  output sign is a close call on the finished starts (losses "
-            + ", ".join(f"{'rises' if f[0].hysteresis.orientation > 0 else 'falls'} {f[1]:.6g}" for f in finished)
-            + "): both go to the refinement"
-        )
-    return model, table, info
+    return finished, table
 
 
 def _on_own_grid(model, fine, data, weights, u_hi, free_start, say):

@@ -26,6 +26,7 @@ from ..identify._choose import (
     fitted_memory_start,
     refine_thermal_start,
     screen_start,
+    shared_screening,
 )
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
@@ -203,10 +204,12 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     options = dict(options)
     for k in ("thresholds", "tilts"):  # auto's defaults: trained (a class without those groups ignores them)
         options[k] = True if options.get(k) is None else options[k]
-    for name in candidates[len(runs) :]:
-        say(f"model auto: fitting {name} ({len(runs) + 1}/{len(candidates)} candidates)", progress)
-        t0 = time.perf_counter()
-        runs.append((name, fit_one(name, options), time.perf_counter() - t0))
+    # classes that screen on the same grid (Preisach and Gaussian Preisach) screen once (`shared_screening`)
+    with shared_screening():
+        for name in candidates[len(runs) :]:
+            say(f"model auto: fitting {name} ({len(runs) + 1}/{len(candidates)} candidates)", progress)
+            t0 = time.perf_counter()
+            runs.append((name, fit_one(name, options), time.perf_counter() - t0))
     scored = [r for r in runs if r[1].metrics["validation"] is not None]
     if not scored:  # no validation error (split none): nothing to compare on; the first (default) class is kept
         name, kept, _ = runs[0]
