@@ -11,14 +11,15 @@ import smafl_jax as sj
 from smafl_jax import GaussianPreisach, Preisach
 
 
-def _numpy_reference(u, lo_ref, span, n, shape, scale, gain, offset, init_up, orientation=1):
-    """Plain numpy: ramp relays one cell wide on cell-centred levels, Gaussian weights in loop centre and width."""
-    h = span / n
-    lv = lo_ref + (np.arange(n) + 0.5) * h
+def _numpy_reference(u, lo_ref, span, n, shape, scale, gain, offset, init_up, orientation=1, extend=0.0):
+    """Plain numpy: ramp relays one cell wide on cell-centred levels over the range widened by ``extend`` of it at each
+    end, Gaussian weights in loop centre and width (in units of the range itself)."""
+    h = span * (1 + 2 * extend) / n
+    lv = lo_ref - extend * span + (np.arange(n) + 0.5) * h
     i, j = np.tril_indices(n)
     a, b = lv[i], lv[j]
     c, d = ((a + b) / 2 - lo_ref) / span, (a - b) / span
-    floor = 0.5 / n
+    floor = 0.5 * (1 + 2 * extend) / n
     zc = (c - shape["centre"]) / (shape["centre_sd"] + floor)
     zd = (d - shape["loop"]) / (shape["loop_sd"] + floor)
     r = math.tanh(shape["corr"])
@@ -39,8 +40,8 @@ def _numpy_reference(u, lo_ref, span, n, shape, scale, gain, offset, init_up, or
 SHAPE = dict(centre=0.55, centre_sd=0.12, loop=0.3, loop_sd=0.1, corr=0.4)
 
 
-def _model(n=10, init="descended", orientation=1, **shape):
-    m = GaussianPreisach.from_range(1.0, 3.0, n_levels=n, init=init, orientation=orientation)
+def _model(n=10, init="descended", orientation=1, extend=0.0, **shape):
+    m = GaussianPreisach.from_range(1.0, 3.0, n_levels=n, init=init, orientation=orientation, extend=extend)
     m = m.with_linear_weights(jnp.array([2.0, 0.3, -0.5]))
     return eqx_replace(m, **{**SHAPE, **shape})
 
@@ -60,11 +61,13 @@ def _input(rng, n=160):
 
 
 @pytest.mark.parametrize("init", ["descended", "zero"])
-@pytest.mark.parametrize("orientation", [1, -1])
-def test_matches_plain_numpy_loop(rng, init, orientation):
+@pytest.mark.parametrize("orientation, extend", [(1, 0.0), (-1, 0.0), (1, 0.25)])
+def test_matches_plain_numpy_loop(rng, init, orientation, extend):
     u = _input(rng)
-    m = _model(init=init, orientation=orientation)
-    ref = _numpy_reference(u, 1.0, 2.0, 10, SHAPE, 2.0, 0.3, -0.5, init == "descended", orientation)
+    if extend:  # an input beyond the range, into the extended grid and past it
+        u = np.r_[u, np.linspace(1.2, 3.7, 40), np.linspace(3.7, 0.4, 40)]
+    m = _model(init=init, orientation=orientation, extend=extend)
+    ref = _numpy_reference(u, 1.0, 2.0, 10, SHAPE, 2.0, 0.3, -0.5, init == "descended", orientation, extend)
     np.testing.assert_allclose(np.asarray(m.simulate(u)), ref, atol=1e-12)
     _, y = jax.lax.scan(lambda s, x: m.step(s, x), m.initial_state(u[0]), jnp.asarray(u))
     np.testing.assert_allclose(np.asarray(y), ref, atol=1e-12)
@@ -133,3 +136,23 @@ def test_bad_construction_is_refused():
         GaussianPreisach.from_range(0.0, 1.0, init="from_top")
     with pytest.raises(ValueError, match="3 linear weights"):
         GaussianPreisach.from_range(0.0, 1.0).with_linear_weights(jnp.zeros(4))
+
+
+def test_grid_reaches_beyond_the_range_and_old_files_load():
+    """A grid extended by ``extend`` of the range beyond each end keeps the shape in units of the range; the default is
+    `EXTEND`; a model saved before the field existed (no ``extend`` key) loads with its own grid and extend 0."""
+    assert GaussianPreisach.from_range(1.0, 3.0).extend == GaussianPreisach.EXTEND
+    e = 0.2
+    m = GaussianPreisach.from_range(1.0, 3.0, n_levels=20, extend=e)
+    assert m.extend == e and m.n_levels == 20
+    lv = np.asarray(m.levels)
+    cell = 2.0 * (1 + 2 * e) / m.n_levels
+    np.testing.assert_allclose([lv[0], lv[-1]], [1.0 - 2.0 * e + cell / 2, 3.0 + 2.0 * e - cell / 2])
+    assert float(m.u_ref) == 1.0 and float(m.u_span) == 2.0 and float(m.ramp) == pytest.approx(cell)
+    assert m.with_range(0.0, 1.0).extend == e
+    d = sj.model_to_dict(_model())
+    d.pop("extend")
+    old = sj.model_from_dict(d)
+    assert old.extend == 0.0 and np.array_equal(np.asarray(old.levels), np.asarray(_model().levels))
+    with pytest.raises(ValueError, match="extend"):
+        GaussianPreisach.from_range(0.0, 1.0, extend=-0.1)

@@ -63,6 +63,14 @@ class GaussianPreisach(AbstractHysteresis):
     #: Levels of the default grid (a cascade's too): the density, not the grid, carries the shape, so the grid only
     #: needs to resolve it (ramp relays, one level wide, smooth the rest); 24 levels = 300 relays.
     N_LEVELS = 24
+    #: Fraction of the input range the relay grid reaches beyond each end of it (`from_range`; 0: the grid is the range).
+    #: A grid reaching beyond lets the density's tails say how many relays switch where a new record leaves the trained
+    #: range.  On the plant's true temperature (plain numpy oracle, .notes/session23/grid_extent_oracle.py) an extension
+    #: of 25 % cut the held-out error where the held-out temperature leaves the trained range (5 records, geometric mean
+    #: 1.49x -> 1.06x noise) and raised it inside (4 records, 2.19x -> 2.62x).  In the cascade (12.5 % and 30 levels, 24
+    #: across the range; 16 fresh plant-B records, experiments/results/class_choice_confirm_session23_G_extend.jsonl):
+    #: 6.58x -> 6.26x, 4 better and 3 worse by > 10 %, 1.3x the fit time; not the default.
+    EXTEND = 0.0
     #: Levels of the free grid the start screening runs on (`screening_grid`).
     SCREEN_LEVELS = Preisach.SCREEN_LEVELS
 
@@ -79,6 +87,8 @@ class GaussianPreisach(AbstractHysteresis):
     u_span: jnp.ndarray = positive()
     ramp: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)  # relay ramp width (input units), 0 = crisp
     init: str = eqx.field(static=True, default="descended")
+    #: the grid's reach beyond [u_ref, u_ref + u_span] as a fraction of u_span (`EXTEND`; 0 in files saved before it)
+    extend: float = eqx.field(static=True, default=0.0)
     orientation: int = eqx.field(static=True, default=1)
 
     def __check_init__(self):
@@ -95,25 +105,34 @@ class GaussianPreisach(AbstractHysteresis):
 
     # -- construction ------------------------------------------------------------------------------------------------
     @classmethod
-    def from_range(cls, u_min, u_max, *, n_levels=None, init="descended", ramp=True, orientation=1):
-        """Untrained model over ``[u_min, u_max]``: a broad density (centre mid-range, width a quarter of the range)."""
+    def from_range(cls, u_min, u_max, *, n_levels=None, init="descended", ramp=True, orientation=1, extend=None):
+        """Untrained model for inputs in ``[u_min, u_max]``: a broad density (centre mid-range, width a quarter of the
+        range); ``n_levels`` cell-centred levels over the range widened by ``extend`` (default `EXTEND`) of it at each
+        end, while the shape stays in units of ``[u_min, u_max]``."""
         u_min, u_max = float(u_min), float(u_max)
         if not np.isfinite(u_min) or not np.isfinite(u_max) or u_max <= u_min:
             raise ValueError(f"input range must be finite with u_max > u_min, got [{u_min}, {u_max}]")
         n = cls.N_LEVELS if n_levels is None else int(n_levels)
         if n < 2:
             raise ValueError(f"n_levels must be >= 2, got {n_levels}")
-        lv = preisach_levels(u_min, u_max, n)
+        ext = cls.EXTEND if extend is None else float(extend)
+        if not 0.0 <= ext <= 1.0:
+            raise ValueError(f"extend must be within [0, 1] (a fraction of the input range), got {extend}")
+        span = u_max - u_min
+        lv = preisach_levels(u_min - ext * span, u_max + ext * span, n)
         return cls(
             scale=0.0, gain=0.0, offset=0.0,
             centre=0.5, centre_sd=0.25, loop=0.25, loop_sd=0.15, corr=0.0,
-            levels=jnp.asarray(lv), u_ref=u_min, u_span=u_max - u_min,
-            ramp=(u_max - u_min) / n if ramp else 0.0, init=init, orientation=int(orientation),
+            levels=jnp.asarray(lv), u_ref=u_min, u_span=span,
+            ramp=span * (1.0 + 2.0 * ext) / n if ramp else 0.0, init=init, orientation=int(orientation), extend=ext,
         )  # fmt: skip
 
     def with_range(self, u_min, u_max, **options):
         """Untrained model with this one's grid size and options for inputs in ``[u_min, u_max]``."""
-        kw = dict(n_levels=self.n_levels, init=self.init, ramp=bool(float(self.ramp) > 0), orientation=self.orientation)
+        kw = dict(
+            n_levels=self.n_levels, init=self.init, ramp=bool(float(self.ramp) > 0), orientation=self.orientation,
+            extend=self.extend,
+        )  # fmt: skip
         return type(self).from_range(u_min, u_max, **{**kw, **options})
 
     def screening_grid(self):
@@ -140,7 +159,7 @@ class GaussianPreisach(AbstractHysteresis):
                 c, d = ((a + b) / 2 - lo) / span, (a - b) / span
                 p = w / w.sum()
                 mc, md = float(p @ c), float(p @ d)
-                floor = _MIN_SD_CELLS / self.n_levels
+                floor = _MIN_SD_CELLS * self.cell
                 sc = max(math.sqrt(float(p @ (c - mc) ** 2)), floor)
                 sd = max(math.sqrt(float(p @ (d - md) ** 2)), floor)
                 r = float(p @ ((c - mc) * (d - md))) / (sc * sd)
@@ -153,6 +172,11 @@ class GaussianPreisach(AbstractHysteresis):
     @property
     def n_levels(self):
         return int(np.shape(self.levels)[0])
+
+    @property
+    def cell(self):
+        """One grid cell in normalised input units (the grid spans ``1 + 2 extend`` of them)."""
+        return (1.0 + 2.0 * float(self.extend)) / self.n_levels
 
     @property
     def n_relays(self):
@@ -168,7 +192,7 @@ class GaussianPreisach(AbstractHysteresis):
         a, b = self.thresholds()
         c = ((a + b) / 2 - self.u_ref) / self.u_span
         d = (a - b) / self.u_span
-        floor = _MIN_SD_CELLS / self.n_levels
+        floor = _MIN_SD_CELLS * self.cell
         zc = (c - self.centre) / (self.centre_sd + floor)
         zd = (d - self.loop) / (self.loop_sd + floor)
         r = jnp.tanh(self.corr)
@@ -262,13 +286,14 @@ class GaussianPreisach(AbstractHysteresis):
     def describe(self):
         """Scale, linear term, the density's shape in input units, grid, initial state, orientation."""
         span = float(self.u_span)
-        floor = _MIN_SD_CELLS / self.n_levels
+        floor = _MIN_SD_CELLS * self.cell
         to_u = lambda s: float(self.u_ref) + span * float(s)
         return [
             f"GaussianPreisach: scale {float(self.scale):.4g}, linear gain {float(self.gain):.4g}, offset {float(self.offset):.4g}; "
             f"loop centre {to_u(self.centre):.4g} (sd {span * (float(self.centre_sd) + floor):.3g}), loop width "
             f"{span * float(self.loop):.4g} (sd {span * (float(self.loop_sd) + floor):.3g}), correlation "
-            f"{math.tanh(float(self.corr)):.2f}; {self.n_levels} levels over [{float(self.u_ref):g}, {float(self.u_ref) + span:g}], "
+            f"{math.tanh(float(self.corr)):.2f}; {self.n_levels} levels over [{to_u(-self.extend):.4g}, {to_u(1 + self.extend):.4g}] (input range "
+            f"[{float(self.u_ref):g}, {float(self.u_ref) + span:g}] and {100 * self.extend:g} % beyond each end), "
             f"init {self.init}",
             _orientation_line(self.orientation),
         ]
