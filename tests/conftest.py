@@ -41,3 +41,20 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="module")
+def short_indep_record(tmp_path_factory):
+    """A 2-minute cold multisine record at 10 Hz from the independent numpy plant (tests/indep_plant.py), loaded from
+    CSV as a user's file is: for tests of the fitting machinery that need a real-looking record, not a particular one."""
+    import sys
+
+    import smafl_jax as sj
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import indep_plant
+
+    r = indep_plant.make_record(3, drive="multisine", rate_hz=10, minutes=2, start="cold")
+    path = tmp_path_factory.mktemp("indep") / "rec.csv"
+    indep_plant.write_csv(path, r)
+    return sj.load_record(path)

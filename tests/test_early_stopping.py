@@ -1,8 +1,5 @@
 """Early stopping of the split fit's joint refinement on the validation samples (`report._report_fit._lm_chunks`)."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -10,16 +7,10 @@ import smafl_jax as sj
 from smafl_jax.identify import default_trainable
 from smafl_jax.report import _report_fit  # private: the chunked refinement and its constants under test
 
-sys.path.insert(0, str(Path(__file__).parent))
-import indep_plant
-
 
 @pytest.fixture(scope="module")
-def record(tmp_path_factory):
-    r = indep_plant.make_record(3, drive="multisine", rate_hz=10, minutes=2, start="cold")
-    path = tmp_path_factory.mktemp("es") / "rec.csv"
-    indep_plant.write_csv(path, r)
-    return sj.load_record(path)
+def record(short_indep_record):
+    return short_indep_record
 
 
 def test_keeps_the_iterate_with_the_lowest_look_and_stops_after_patience(record, monkeypatch):

@@ -1,8 +1,5 @@
 """`shared_screening`: classes that screen on the same grid (Preisach, Gaussian Preisach) screen once within it."""
 
-import sys
-from pathlib import Path
-
 import jax
 import numpy as np
 import pytest
@@ -15,18 +12,12 @@ from smafl_jax.identify import (
 )
 from smafl_jax.report._report_fit import build_model  # private: the structures `--model auto` fits
 
-sys.path.insert(0, str(Path(__file__).parent))
-import indep_plant
-
 KW = {"k1_grid": 6, "sees": "heat", "thermal_start": "steady"}  # one input and one start: few programs to compile
 
 
 @pytest.fixture(scope="module")
-def record(tmp_path_factory):
-    r = indep_plant.make_record(3, drive="multisine", rate_hz=10, minutes=2, start="cold")
-    path = tmp_path_factory.mktemp("shared") / "rec.csv"
-    indep_plant.write_csv(path, r)
-    return sj.load_record(path)
+def record(short_indep_record):
+    return short_indep_record
 
 
 def _counting(monkeypatch):
