@@ -58,3 +58,22 @@ def test_a_refinement_that_never_helps_validation_is_rejected(record, monkeypatc
     )
     assert refinement == "rejected" and "raised the validation RMSE" in note
     np.testing.assert_allclose(y0, np.asarray(sj.simulate(model, record.u, record.dt)))
+
+
+def test_cli_flag_reaches_the_fit_and_is_recorded(record, tmp_path):
+    """`smafl fit --early-stopping`: fit.json says so and carries the chunks' validation errors; without the flag the
+    refinement runs as before (no early-stopping entry)."""
+    import json
+
+    from smafl_jax.cli import main as cli_main
+
+    common = ["fit", str(record.path), "--model", "cascade", "--max-steps", "100", "--no-figures", "--no-refit"]
+    assert cli_main([*common, "--early-stopping", "--out", str(tmp_path / "es")]) == 0
+    doc = json.loads((tmp_path / "es" / "fit.json").read_text())
+    assert doc["settings"]["early_stopping"] is True
+    es = doc["solver"]["early_stopping"]
+    assert 0 < es["steps_run"] <= 100 and es["steps_kept"] <= es["steps_run"]
+    assert [s for s, _ in es["validation_mse"]][-1] == es["steps_run"]
+    assert cli_main([*common, "--out", str(tmp_path / "plain")]) == 0
+    plain = json.loads((tmp_path / "plain" / "fit.json").read_text())
+    assert plain["settings"]["early_stopping"] is False and plain["solver"]["early_stopping"] is None

@@ -506,6 +506,7 @@ def _fit_structure(
                 "init": (res.info or {}).get("init"),
                 "fit_view": view_info,
                 "gain_prior": gain_prior,
+                "early_stopping": early_stopping,
             },
             "solver": solver_entry(
                 res,
