@@ -10,6 +10,10 @@ Ratio = ours seconds / profiled-only seconds.  Other 30 000-sample records: ``--
 (the duration follows from the rate), one process per record so each pays its own compilation.
 
     python -m benchmarks.bench_default_fit [--quick] [--drive pwm|multisine|staircase|steps|chirp|triangle] [--rate HZ]
+        [--threads N]
+
+``--threads N``: at most N of ``--model auto``'s candidate classes at once (default: one per core); ``--threads 1``
+in another process is the one-after-another baseline of the threaded fit.
 """
 
 from __future__ import annotations
@@ -29,12 +33,19 @@ ROOT = Path(__file__).resolve().parents[1]
 RATIO_MEANING = "default fit seconds / profiled-start-only seconds (what the joint refinement costs)"
 
 
-def run(quick=False, drive="pwm", rate_hz=25):
+def run(quick=False, drive="pwm", rate_hz=25, threads=None):
     sys.path.insert(0, str(ROOT / "tests"))
     import indep_plant
 
     import smafl_jax as sj
-    from smafl_jax.report import fit_record
+    from smafl_jax.report import (
+        _report_fit,  # private: caps the candidate threads for the baseline
+        fit_record,
+    )
+
+    if threads is not None:
+        default = _report_fit.candidate_threads
+        _report_fit.candidate_threads = lambda n: min(default(n), int(threads))
 
     minutes = (5.0 if quick else 20.0) * 25 / rate_hz  # 30 000 samples (quick: 7 500)
     r = indep_plant.make_record(7, drive=drive, rate_hz=rate_hz, minutes=minutes, start="cold")
@@ -51,7 +62,8 @@ def run(quick=False, drive="pwm", rate_hz=25):
             progress(f"default_fit: {label}: {seconds[label]:.1f} s, train RMSE {doc['metrics']['train']['rmse']:.4g}")
     return [
         row(
-            f"default smafl fit, {len(rec)} samples (goal < 60 s)",
+            f"default smafl fit, {len(rec)} samples (goal < 60 s)"
+            + (f", at most {threads} candidate threads" if threads else ""),
             seconds["default"],
             seconds["profiled only"],
             "s",
@@ -68,6 +80,7 @@ if __name__ == "__main__":
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--drive", default="pwm")
     ap.add_argument("--rate", type=float, default=25.0)
+    ap.add_argument("--threads", type=int, default=None)
     a = ap.parse_args()
-    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate):
+    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate, threads=a.threads):
         print(r_)

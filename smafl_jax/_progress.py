@@ -25,9 +25,43 @@ import sys
 import threading
 import time
 
-__all__ = ["LOGGER", "Steps", "heartbeat", "count_step", "say", "shown", "shown_on_stderr", "format_seconds"]
+__all__ = ["LOGGER", "Steps", "heartbeat", "count_step", "say", "shown", "shown_on_stderr", "format_seconds", "tagged"]
 
 LOGGER = logging.getLogger("smafl_jax.progress")
+
+#: Tags of threads whose progress lines are prefixed (`tagged`), by thread identifier.
+_TAGS: dict[int, str] = {}
+
+
+class _TagFilter(logging.Filter):
+    """Prefixes ``[tag]`` to the progress lines of a `tagged` thread: work running on several threads at once (the
+    candidates of ``--model auto``) would otherwise interleave lines nobody can attribute."""
+
+    def filter(self, record):
+        tag = _TAGS.get(record.thread)
+        if tag is not None and isinstance(record.msg, str):
+            record.msg = f"[{tag}] {record.msg.lstrip()}"
+        return True
+
+
+LOGGER.addFilter(_TagFilter())
+
+
+@contextlib.contextmanager
+def tagged(tag: str):
+    """Within this block, the calling thread's progress lines (and those of its `heartbeat` threads) start with
+    ``[tag]``."""
+    ident = threading.get_ident()
+    before = _TAGS.get(ident)
+    _TAGS[ident] = tag
+    try:
+        yield
+    finally:
+        if before is None:
+            _TAGS.pop(ident, None)
+        else:
+            _TAGS[ident] = before
+
 
 #: Least seconds between two progress lines of one phase (the last step is always reported).
 EVERY_S = 5.0
@@ -120,14 +154,20 @@ class _Counter:
         self.last = now
 
 
-_ACTIVE: list[_Counter] = []
+#: Step counters of the open `heartbeat` blocks that count steps, with the identifier of the thread that opened each.
+_ACTIVE: list[tuple[int, _Counter]] = []
 
 
 def count_step(*_args) -> None:
     """Host callback for one step of a compiled loop (``jax.debug.callback(count_step)``): counts it for the
-    innermost `heartbeat` that asked for a step count; does nothing otherwise."""
-    if _ACTIVE:
-        _ACTIVE[-1].tick()
+    innermost `heartbeat` that asked for a step count, that of the calling thread when it has one (candidates
+    fitted on several threads: the callback runs on the thread that called the compiled function); does nothing
+    otherwise."""
+    active = list(_ACTIVE)  # another thread may open or close a heartbeat meanwhile
+    if active:
+        ident = threading.get_ident()
+        mine = [c for t, c in active if t == ident]
+        (mine or [active[-1][1]])[-1].tick()
 
 
 @contextlib.contextmanager
@@ -145,10 +185,14 @@ def heartbeat(label: str, *, every_s: float | None = None, enabled: bool = True,
     stop = threading.Event()
     t0 = time.monotonic()
     counter = _Counter()
+    entry = (threading.get_ident(), counter)
     if max_steps is not None:
-        _ACTIVE.append(counter)
+        _ACTIVE.append(entry)
+    tag = _TAGS.get(threading.get_ident())
 
     def beat():
+        if tag is not None:
+            _TAGS[threading.get_ident()] = tag
         while not stop.wait(every):
             msg = f"  {label}: {format_seconds(time.monotonic() - t0)} elapsed"
             n = counter.n - 1  # the first count is the evaluation at the start point (after compiling)
@@ -165,8 +209,9 @@ def heartbeat(label: str, *, every_s: float | None = None, enabled: bool = True,
         stop.set()
         if max_steps is not None:
             with contextlib.suppress(ValueError):
-                _ACTIVE.remove(counter)
+                _ACTIVE.remove(entry)
         thread.join(timeout=1.0)
+        _TAGS.pop(thread.ident, None)
 
 
 # -- showing progress (the command line) ---------------------------------------------------------------

@@ -18,11 +18,13 @@ refinement can settle on any start temperature between cold and equilibrium.
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import contextvars
 import copy
 import dataclasses
 import hashlib
+import threading
 import time
 
 import jax
@@ -77,11 +79,36 @@ def shared_screening():
     Preisach, which both screen on the same 12-level relay grid (measured on the benchmark record: identical outputs,
     the Gaussian-Preisach candidate 63.8 -> 51.9 s, the fit 149 -> 144 s).  Scoped, so nothing outlives the call that
     opened it."""
-    token = _SHARED.set({})
+    token = _SHARED.set(_Screenings())
     try:
         yield
     finally:
         _SHARED.reset(token)
+
+
+class _Screenings:
+    """The screenings of one `shared_screening` block, by content key.  Candidates may run on several threads (the
+    copies of the block's context share this object): a second caller of a key waits for the first one's screening
+    in progress instead of repeating it."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._made: dict[str, concurrent.futures.Future] = {}
+
+    def get_or_make(self, key, make):
+        """``(value, reused)``: a copy of the screening stored under ``key``, made by ``make()`` if nobody has yet."""
+        with self._lock:
+            fut = self._made.get(key)
+            mine = fut is None
+            if mine:
+                fut = self._made[key] = concurrent.futures.Future()
+        if mine:
+            try:
+                fut.set_result(copy.deepcopy(make()))
+            except BaseException as e:  # the waiters get the same failure; this caller raises it as it is
+                fut.set_exception(e)
+                raise
+        return copy.deepcopy(fut.result()), not mine
 
 
 def _digest(h, x):
@@ -381,15 +408,18 @@ def screen_start(
     say = progress_line if progress else (lambda msg: None)
     memo = _SHARED.get()
     options = (orientation, thermal_start, sees, k1_grid, memory, choose)
-    key = None if memo is None else _screening_key(start, data, _as_weights(weights, data), val_weights, options)
-    if key is not None and key in memo:
-        say("  start screening: identical to an earlier candidate's screening on the same grid, reused")
-        finished, table = copy.deepcopy(memo[key])
+
+    def make():
+        return _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi, k1_grid, memory,
+                       choose, say)  # fmt: skip
+
+    if memo is None:
+        finished, table = make()
     else:
-        finished, table = _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi,
-                                  k1_grid, memory, choose, say)  # fmt: skip
-        if key is not None:
-            memo[key] = copy.deepcopy((finished, table))
+        key = _screening_key(start, data, _as_weights(weights, data), val_weights, options)
+        (finished, table), reused = memo.get_or_make(key, make)
+        if reused:
+            say("  start screening: identical to an earlier candidate's screening on the same grid, reused")
     finished = [f for f in finished if f[1] <= ORIENTATION_AMBIGUITY * finished[0][1]]
     model, _, info = finished[0]
     model = _on_own_grid(model, fine, data, weights, u_hi, free_start, say)
