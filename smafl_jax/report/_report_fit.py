@@ -184,8 +184,8 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     The candidates are fitted at once on `candidate_threads` threads (one per core, fit.json
     ``settings.structure_choice.threads``), with the results of fitting them one after another: each fit is
     deterministic and independent of the others, and the screening two classes share is made once
-    (`shared_screening`).  Measured on the benchmark record (2 cores): 169 s one after another, 100 s on 2 threads.
-    Each candidate's ``seconds`` is its own wall time, which overlaps the others'.
+    (`shared_screening`).  Measured on the benchmark record (2 cores, quiet): 135.8 s one after another, 89.8 s on 2
+    threads (the session-23 code 139.8 s).  Each candidate's ``seconds`` is its own wall time, which overlaps the others'.
     """
     candidates, why = auto_candidates(record)
     drive = candidates[0] not in HYSTERESIS  # a drive voltage: the default cascade first, as `fit_one("auto")` fits it
@@ -275,7 +275,7 @@ def _submit_longest_first(pool, job, names, first=0):
     (`AbstractHysteresis.refine_jointly`: a gradient refinement after the start, the longer fits), then those whose
     profiled start is the fit.  Why: two classes that share a screening (`shared_screening`) cannot overlap it, so the
     one with more work after it should make it (measured on the benchmark record with 2 threads: the Preisach submitted
-    before the Gaussian Preisach 118 s, after it 100 s; one thread 169 s)."""
+    before the Gaussian Preisach 98.3 s, after it 89.8 s)."""
     names = tuple(names)
 
     def joint(i):
