@@ -77,6 +77,7 @@ for seed in seeds:
             train=float(np.sqrt(np.mean(e[:h0] ** 2)) / sd),
             held=float(np.sqrt(np.mean(e[h0:] ** 2)) / sd),
             seconds=sec,
+            chosen=(doc["settings"].get("structure_choice") or {}).get("chosen", doc["settings"].get("structure")),
             k1_true=r["truth"]["thermal"]["k1"],
             k1=float(getattr(getattr(model, "thermal", None), "k1", np.nan)),
             memory=r["truth"]["hysteresis"]["memory"]["kind"],
