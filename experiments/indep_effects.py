@@ -17,6 +17,7 @@ Cases (truth name -> plant effect / allowed variants, constraint):
     rate_dependence     -> play thresholds widen with the (filtered) rate of the hysteresis input
     creep               -> one Kelvin-Voigt element or a spectrum of 3-5 time constants on the output
     delay               -> transport delay of the drive (whole samples) or fractional delay of the output
+    output_lag          -> the output sensor's lag (the plant's sensor_lag): one first-order pole or two equal ones
 
 Starts are "cold" (ambient, drive on from t = 0) or "warm" (steady state at the first drive level), drives
 are drawn from the plant's FAMILIES, noise is the plant's (5 um fixed or 0.1-1.5 % of the stroke).
@@ -52,6 +53,7 @@ CASES: dict[str, tuple[str | None, tuple[str, ...], object]] = {
     "rate_dependence": ("rate_dependence", ("threshold_widening",), None),
     "creep": ("creep", ("kelvin_voigt", "spectrum"), None),
     "delay": ("delay", ("integer", "fractional"), None),
+    "output_lag": ("sensor_lag", ("first_order", "second_order"), None),
 }
 TRUTHS = tuple(CASES)
 MIN_SAMPLES, MAX_SAMPLES = 2000, 4000

@@ -60,7 +60,8 @@ for _info in sorted(_pkgutil.iter_modules(__path__), key=lambda m: m.name):
     if _info.name not in _CORE_MODULES:
         _importlib.import_module(f"{__name__}.{_info.name}")
 
-from .sensor_lead import SensorLead  # noqa: E402, F401  (a public name: sj.SensorLead; registered by the loop above)
+from .output_lag import OutputLag  # noqa: E402  (public: smafl_jax.effects.OutputLag; registered by the loop above)
+from .sensor_lead import SensorLead  # noqa: E402  (public: smafl_jax.effects.SensorLead; registered by the loop above)
 
 #: The built-in catalogue names in catalogue order (`effect_names` also lists effects registered later).
 EFFECT_NAMES = tuple(EFFECTS)
@@ -105,11 +106,13 @@ __all__ = [
     "LogBox",
     "Nonlinear",
     "NonlinearCooling",
+    "OutputLag",
     "OutputLink",
     "OutputSaturation",
     "RateDependence",
     "ResistanceTC",
     "SensorLag",
+    "SensorLead",
     "StrainAccumulation",
     "Tanh",
     "Transform",
