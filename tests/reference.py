@@ -33,6 +33,17 @@ def eupi_loop(m, u):
     return out + float(m.offset)
 
 
+def lag_loop(x, dt, tau):
+    """Exact first-order lag of a zero-order-hold signal, at rest with the first sample."""
+    a = np.exp(-dt / tau)
+    out = np.empty_like(np.asarray(x, float))
+    z = x[0]
+    for k, xk in enumerate(x):
+        z = a * z + (1.0 - a) * xk
+        out[k] = z
+    return out
+
+
 def thermal_loop(u, dt, k1, k2, theta0):
     a = np.exp(-k1 * dt)
     g = k2 / k1

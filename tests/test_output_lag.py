@@ -14,22 +14,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from reference import lag_loop
 
 import smafl_jax as sj
 from smafl_jax.effects import EFFECTS, ExtendedModel, OutputLag
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _lag_np(x, dt, tau):
-    """Plain loop: exact first-order lag of a zero-order-hold signal, at rest with the first sample."""
-    a = np.exp(-dt / tau)
-    out = np.empty_like(x)
-    z = x[0]
-    for k, xk in enumerate(x):
-        z = a * z + (1.0 - a) * xk
-        out[k] = z
-    return out
 
 
 def _eff(tau):
@@ -67,7 +57,7 @@ def test_model_output_is_the_lagged_base_output(eupi, steps, tau):
     dt = 0.1
     y0 = np.asarray(sj.simulate(eupi, steps))
     got = np.asarray(sj.simulate(ExtendedModel(eupi, (_eff(tau),)), steps, dt))
-    np.testing.assert_allclose(got, _lag_np(y0, dt, tau), rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(got, lag_loop(y0, dt, tau), rtol=1e-10, atol=1e-10)
     assert got[0] == pytest.approx(y0[0], abs=1e-12)  # at rest with the first sample
 
 
@@ -75,7 +65,7 @@ def test_constant_columns_pass_unchanged(steps):
     F = jnp.stack([jnp.ones(300), jnp.asarray(steps[:300])], axis=1)
     Z = np.asarray(_eff(2.0).filter_features(F, 0.1))
     np.testing.assert_allclose(Z[:, 0], 1.0, atol=1e-14)
-    np.testing.assert_allclose(Z[:, 1], _lag_np(steps[:300], 0.1, 2.0), atol=1e-12)
+    np.testing.assert_allclose(Z[:, 1], lag_loop(steps[:300], 0.1, 2.0), atol=1e-12)
 
 
 def test_json_round_trip(tmp_path, eupi, steps):
@@ -121,8 +111,8 @@ def test_fit_recovers_an_output_lag(eupi):
     dt, tau = 0.1, 1.5
     r = np.random.default_rng(3)
     levels = np.r_[0.0, r.uniform(1.0, 7.0, 9), 0.0, r.uniform(0.5, 6.5, 9)]
-    u = _lag_np(np.repeat(levels, 100), dt, 0.2)
-    y = _lag_np(np.asarray(sj.simulate(eupi, u)), dt, tau) + 0.003 * r.standard_normal(u.size)
+    u = lag_loop(np.repeat(levels, 100), dt, 0.2)
+    y = lag_loop(np.asarray(sj.simulate(eupi, u)), dt, tau) + 0.003 * r.standard_normal(u.size)
     rec = Record.from_arrays(np.arange(y.size) * dt, u, y, input_name="temperature_C", output_name="length")
     n = len(rec)
     split = Split("time", "test", [_segment(rec, np.arange(n), mask=np.arange(n) < n // 2)], [])

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from reference import lag_loop
 
 import smafl_jax as sj
 from smafl_jax.effects import EFFECTS, ExtendedModel, SensorLag
@@ -21,20 +22,9 @@ from smafl_jax.effects.sensor_lead import SensorLead
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _lag_np(x, dt, tau):
-    """Plain loop: exact first-order lag of a zero-order-hold input, at rest with the first sample."""
-    a = np.exp(-dt / tau)
-    out = np.empty_like(x)
-    z = x[0]
-    for k, xk in enumerate(x):
-        z = a * z + (1.0 - a) * xk
-        out[k] = z
-    return out
-
-
 def _lead_np(x, dt, lead, tau):
     """``x' = z + g (x - z)``: z the low-pass with tau, g the gain whose pole cancels a lag of time constant lead."""
-    z = _lag_np(x, dt, tau)
+    z = lag_loop(x, dt, tau)
     g = (np.exp(dt / tau) - 1.0) / (np.exp(dt / lead) - 1.0)
     return z + g * (x - z)
 
@@ -92,9 +82,9 @@ def test_undoes_a_first_order_sensor_lag():
     dt, tau_s, tau_f = 0.1, 4.0, 0.3
     t = np.arange(0, 80, dt)
     # the material: smooth steps (1 s rise), a slow oscillation and sensor noise
-    true = _lag_np(np.where((t > 10) & (t < 45), 60.0, 25.0), dt, 0.3) + 3.0 * np.sin(2 * np.pi * t / 17.0)
-    sensor = _lag_np(true, dt, tau_s)
-    want = _lag_np(true, dt, tau_f)
+    true = lag_loop(np.where((t > 10) & (t < 45), 60.0, 25.0), dt, 0.3) + 3.0 * np.sin(2 * np.pi * t / 17.0)
+    sensor = lag_loop(true, dt, tau_s)
+    want = lag_loop(true, dt, tau_f)
     span = np.ptp(true)
     got = np.asarray(_eff(tau_s, tau_f).transform_input(jnp.asarray(sensor), dt))
     assert np.max(np.abs(sensor - want)) > 0.5 * span  # the sensor lag is large
@@ -157,8 +147,8 @@ def test_fit_recovers_a_sensor_lag(eupi):
     dt, tau_s = 0.1, 3.0
     r = np.random.default_rng(11)
     levels = np.r_[0.0, r.uniform(1.0, 7.0, 9), 0.0, r.uniform(0.5, 6.5, 9)]
-    material = _lag_np(np.repeat(levels, 150), dt, 0.4)  # each step: 15 s, rises in ~1 s
-    sensor = _lag_np(material, dt, tau_s)
+    material = lag_loop(np.repeat(levels, 150), dt, 0.4)  # each step: 15 s, rises in ~1 s
+    sensor = lag_loop(material, dt, tau_s)
     y = np.asarray(sj.simulate(eupi, material)) + 0.003 * r.standard_normal(material.size)
     rec = Record.from_arrays(np.arange(y.size) * dt, sensor, y, input_name="temperature_C", output_name="length")
     n = len(rec)
