@@ -12,32 +12,17 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
 from ..models._constraints import positive
+from .catalogue import _lowpass  # the catalogue's zero-order-hold lag, at rest with the first row
 from .protocol import AbstractFeatureEffect, LogBox, Nonlinear, register_effect
 
-__all__ = ["OutputLag", "output_lowpass"]
+__all__ = ["OutputLag"]
 
 _a = jnp.asarray
-
-
-def output_lowpass(F, dt, tau):
-    """Zero-order-hold first-order lag of each column of ``F`` (``(T,)`` or ``(T, p)``), at rest with the first row.
-
-    ``z(k) = a z(k-1) + (1 - a) F(k)``, ``a = exp(-dt / tau)``, ``z(0) = F(0)``: a column that is constant stays
-    constant, so the offset and the gains stay linear and the lag commutes with the profiled least squares."""
-    a = jnp.exp(-dt / tau)
-
-    def step(z, fk):
-        z = a * z + (1.0 - a) * fk
-        return z, z
-
-    _, z = jax.lax.scan(step, F[0], F)
-    return z
 
 
 @register_effect
@@ -59,15 +44,15 @@ class OutputLag(AbstractFeatureEffect):
     }
     synthetic: ClassVar[str] = "tau ~ U(1, 5) s, at least 3 samples"
     #: Fitting range of ``tau`` (models saved with values outside it still load and run unchanged): from a quarter of a
-    #: sample (hardly visible) to a quarter of the training stretch.  Why bounded: a lag much longer than the record
-    #: flattens every column, and gains scaled up by the inverse of that flattening extrapolate wildly (an unbounded
-    #: fit did so on an independent record: one fold's held-out error 90x the base's).
+    #: sample (hardly visible) to a quarter of the training stretch.  Why bounded (as creep is): a lag much longer than
+    #: the record flattens every column, and gains scaled up by the inverse of that flattening extrapolate wildly.
     TAU_MIN_SAMPLES: ClassVar[float] = 0.25
     TAU_MAX_FRACTION: ClassVar[float] = 0.25
     tau: jnp.ndarray = positive()
 
     def filter_features(self, F, dt):
-        return output_lowpass(F, dt, self.tau)
+        # at rest with the first row: a constant column stays constant, so the offset and the gains stay linear
+        return _lowpass(F, dt, self.tau)
 
     @classmethod
     def tau_bounds(cls, dt, duration):
