@@ -148,8 +148,8 @@ def test_divergence_is_reported_and_start_kept(monkeypatch):
     """A refinement that returns NaN is discarded with a message saying so and why."""
     from smafl_jax.identify import _fit  # private: monkeypatch target (_refine)
 
-    def nan_refine(model, spec, args, solver, max_steps, rtol, atol):
-        return eqx.tree_at(lambda m: m.a, model, jnp.asarray(np.nan)), float("nan"), 7, False
+    def nan_refine(model, spec, args, solver, max_steps, rtol, atol, stall):
+        return eqx.tree_at(lambda m: m.a, model, jnp.asarray(np.nan)), float("nan"), 7, False, False
 
     monkeypatch.setattr(_fit, "_refine", nan_refine)
     u = np.linspace(0.0, 1.0, 50)

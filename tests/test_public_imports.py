@@ -25,7 +25,7 @@ PUBLIC_API = (
     "DataError", "Diagnosis", "EFFECTS", "EFFECT_NAMES", "EUPI", "ExtendedModel", "FitResult", "GaussianPreisach",
     "IICompensator",
     "JouleLag", "JouleThermal", "PAPER_K1", "PAPER_K2", "PID", "POSITIVE_FLOOR", "Posterior", "Preisach", "Prior",
-    "Recalibrated", "Record", "SOLVERS", "SampleRun", "SamplingResult", "SimulationResult", "SweepResult",
+    "Recalibrated", "Record", "SOLVERS", "SampleRun", "StallStop", "SamplingResult", "SimulationResult", "SweepResult",
     "UserInputError", "as_fit_data", "atomic_savefig", "atomic_write_csv", "atomic_write_json", "atomic_write_text",
     "choose_model_method", "closed_loop_metrics", "consistent_initial_state", "constrain", "default_priors",
     "default_trainable", "diagnose", "diagnostics", "e_mean", "effective_voltage", "error_ratio",

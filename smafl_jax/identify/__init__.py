@@ -47,6 +47,7 @@ from ._multi_record import (
 )
 from ._recalibrate import CALIBRATION_PARAMETERS, Recalibrated, after_segment_metrics, recalibrate, segment_indices
 from ._split import SPLITS, split_masks
+from ._stall import STALL_MIN_GAIN, STALL_WINDOW, StallStop
 from .linear import METHODS, LinearSolution, column_scale, solve
 from .varpro import Bounded, LinearProjection, NelderMead, Profiled, Search, search
 
@@ -69,6 +70,9 @@ __all__ = [
     "default_trainable",
     "as_fit_data",
     "SOLVERS",
+    "StallStop",
+    "STALL_WINDOW",
+    "STALL_MIN_GAIN",
     "auto_candidates",
     "auto_structure",
     "screen_start",

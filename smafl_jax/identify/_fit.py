@@ -48,6 +48,7 @@ from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unco
 from ..models._hysteresis import hysteresis_of, thermal_of
 from . import varpro
 from ._gain_prior import check_gain_prior, map_gains
+from ._stall import STALL_MIN_GAIN, STALL_WINDOW, StallStop
 from .varpro import FIT_SOLVE
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
@@ -379,11 +380,12 @@ def _residuals(model, args):
 _residuals_jit = eqx.filter_jit(_residuals)
 
 
-def _make_optx_solver(name, rtol, atol):
-    if name == "lm":
-        return optx.LevenbergMarquardt(rtol=rtol, atol=atol)
-    if name == "gauss_newton":
-        return optx.GaussNewton(rtol=rtol, atol=atol)
+def _make_optx_solver(name, rtol, atol, stall=True):
+    """The optimistix solver ``name``; ``stall``: Gauss-Newton types also stop once their steps stop paying
+    (`StallStop`)."""
+    if name in ("lm", "gauss_newton"):
+        inner = (optx.LevenbergMarquardt if name == "lm" else optx.GaussNewton)(rtol=rtol, atol=atol)
+        return StallStop(inner) if stall else inner
     if name == "bfgs":
         return optx.BFGS(rtol=rtol, atol=atol)
     raise UserInputError(f"unknown solver {name!r}; choose one of {SOLVERS}")
@@ -405,7 +407,7 @@ def _solve_optx(solver, raw_train, static, args, max_steps):
         sol = optx.least_squares(fn, solver, raw_train, args, max_steps=max_steps, throw=False)
     loss = 0.5 * jnp.sum(fn(sol.value, args) ** 2)
     ok = sol.result == optx.RESULTS.successful
-    return sol.value, ok, sol.stats["num_steps"], loss
+    return sol.value, ok, sol.stats["num_steps"], loss, sol.stats.get("stalled", jnp.array(False))
 
 
 @eqx.filter_jit
@@ -461,11 +463,13 @@ def _finite_tree(tree):
     return all(bool(np.all(np.isfinite(np.asarray(x)))) for x in jax.tree_util.tree_leaves(tree) if eqx.is_array(x))
 
 
-def _refine(model, spec, args, solver, max_steps, rtol, atol):
-    """Joint refinement; returns ``(model, loss, n_steps, ok)``."""
+def _refine(model, spec, args, solver, max_steps, rtol, atol, stall=True):
+    """Joint refinement; returns ``(model, loss, n_steps, ok, stalled)``."""
+    stalled = False
     if solver in ("lm", "gauss_newton", "bfgs"):
         raw_train, static = eqx.partition(unconstrain(model), spec)
-        value, ok, n, loss = _solve_optx(_make_optx_solver(solver, rtol, atol), raw_train, static, args, max_steps)
+        solve = _solve_optx(_make_optx_solver(solver, rtol, atol, stall), raw_train, static, args, max_steps)
+        value, ok, n, loss, stalled = solve
         fitted = constrain(eqx.combine(value, static))
     elif solver in ("lbfgsb", "projected_gradient"):
         params, static = eqx.partition(model, spec)
@@ -476,7 +480,7 @@ def _refine(model, spec, args, solver, max_steps, rtol, atol):
         fitted = eqx.combine(value, static)
     else:
         raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
-    return fitted, float(loss), int(n), bool(ok)
+    return fitted, float(loss), int(n), bool(ok), bool(stalled)
 
 
 _INITS = ("auto", "profile", "linear", None)
@@ -497,6 +501,7 @@ def fit(
     k1_grid: int | ArrayLike = 32,
     profile_xatol: float = 1e-7,
     gain_prior: float | None = None,
+    stall: bool = True,
     progress: bool = False,
 ) -> FitResult:
     """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
@@ -514,11 +519,13 @@ def fit(
     ``gain_prior``: kappa of the prior on the operator gains (`smafl_jax.identify._gain_prior`: each operator gain
     ~ N(0, (kappa x output range)^2)); the returned gains are then the MAP at the fitted nonlinear parameters
     (``info["gain_prior"]`` says what it changed).  None (the default here): the least-squares gains.
+    ``stall``: the Gauss-Newton-type solvers (lm, gauss_newton) also stop once the last `STALL_WINDOW` steps gained
+    less than `STALL_MIN_GAIN` in log-likelihood (`StallStop`); False runs them to their own tolerance or ``max_steps``.
     """
     gain_prior = check_gain_prior(gain_prior)
     res = _fit(
         model, data, dt, solver=solver, trainable=trainable, init=init, max_steps=max_steps, rtol=rtol, atol=atol,
-        weights=weights, k1_grid=k1_grid, profile_xatol=profile_xatol, progress=progress,
+        weights=weights, k1_grid=k1_grid, profile_xatol=profile_xatol, stall=stall, progress=progress,
     )  # fmt: skip
     if gain_prior is None:
         return res
@@ -542,7 +549,7 @@ def fit(
 
 
 def _fit(
-    model, data, dt=None, *, solver, trainable, init, max_steps, rtol, atol, weights, k1_grid, profile_xatol, progress
+    model, data, dt=None, *, solver, trainable, init, max_steps, rtol, atol, weights, k1_grid, profile_xatol, stall, progress
 ) -> FitResult:
     """`fit` without the gain prior."""
     release_if_needed()  # long sessions compile many programs: stay under the memory-map limit (`_compile_cache`)
@@ -594,7 +601,7 @@ def _fit(
     t1 = time.perf_counter()
     counted = max_steps if solver in _COUNTED else None
     with shown(progress), heartbeat(f"joint refinement ({solver})", enabled=progress, max_steps=counted):
-        fitted, loss, n_steps, ok = _refine(start, spec, args, solver, max_steps, rtol, atol)
+        fitted, loss, n_steps, ok, stalled = _refine(start, spec, args, solver, max_steps, rtol, atol, stall)
     info["refine_seconds"] = time.perf_counter() - t1
     info["total_seconds"] = time.perf_counter() - t0
     finite = np.isfinite(loss) and _finite_tree(fitted)
@@ -612,9 +619,15 @@ def _fit(
             "kept the initialiser's model"
         )
         return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)
-    message = (
-        "converged" if ok else f"{solver} stopped after {n_steps} steps without meeting its tolerance (max_steps={max_steps})"
-    )
+    if stalled:
+        message = (
+            f"converged: {solver} stopped after {n_steps} steps, the last {STALL_WINDOW} of which gained less than "
+            f"{STALL_MIN_GAIN:g} in log-likelihood"
+        )
+    elif ok:
+        message = "converged"
+    else:
+        message = f"{solver} stopped after {n_steps} steps without meeting its tolerance (max_steps={max_steps})"
     return FitResult(fitted, loss, n_steps, ok, message, solver, init_loss, info)
 
 
