@@ -17,9 +17,10 @@ from __future__ import annotations
 
 import gc
 import logging
+import os
 from pathlib import Path
 
-__all__ = ["map_count", "map_limit", "release_if_needed"]
+__all__ = ["map_count", "map_limit", "release_if_needed", "enable_persistent_cache", "persistent_cache_dir", "CACHE_ENV"]
 
 _LOG = logging.getLogger(__name__)
 #: Clear the caches once the process holds this fraction of ``vm.max_map_count``.
@@ -56,3 +57,48 @@ def release_if_needed(fraction: float = FRACTION) -> bool:
     gc.collect()
     _LOG.info("cleared JAX's compilation caches: %d of %d memory maps in use (now %s)", n, limit, map_count())
     return True
+
+
+# -- compiled programs kept on disk between runs ---------------------------------------------------------
+
+#: Environment variable: "off" (or "0", "no") disables the on-disk cache of compiled programs that the command line
+#: turns on; a path puts it there.  Unset: ``$XDG_CACHE_HOME/smafl-jax/xla`` (``~/.cache/smafl-jax/xla``).
+CACHE_ENV = "SMAFL_COMPILE_CACHE"
+#: Programs that compile faster than this are not written (JAX's default is 1 s; most of a fit's programs take 0.1-1 s).
+MIN_COMPILE_S = 0.1
+
+
+def persistent_cache_dir() -> str | None:
+    """The folder of JAX's persistent compilation cache when one is in use, else None."""
+    import jax
+
+    return jax.config.jax_compilation_cache_dir or None
+
+
+def enable_persistent_cache() -> str | None:
+    """Turn on JAX's persistent compilation cache (`CACHE_ENV` says where, or off); returns its folder or None.
+
+    Why: half of a default fit's time on a new process is compiling (the 30 000-sample benchmark record of issue 18:
+    95 s, then 47.5 s for the same fit again in the same process).  With the programs on disk a second run (another
+    record of the same length and structure, or the same one) skips most of it (session 26: 86.8 s -> 55.8 s).  A cache
+    the user set for JAX (``JAX_COMPILATION_CACHE_DIR``) is kept as it is.  Results are unchanged: the same programs run.
+    """
+    import jax
+
+    if persistent_cache_dir() is not None:
+        return persistent_cache_dir()
+    where = os.environ.get(CACHE_ENV)
+    if where is not None and where.strip().lower() in ("off", "0", "no", "false", ""):
+        return None
+    if where is None:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        where = os.path.join(base, "smafl-jax", "xla")
+    try:
+        os.makedirs(where, exist_ok=True)
+    except OSError as exc:
+        _LOG.info("no on-disk cache of compiled programs (%s: %s)", where, exc)
+        return None
+    jax.config.update("jax_compilation_cache_dir", where)
+    if "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS" not in os.environ:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_COMPILE_S)
+    return where

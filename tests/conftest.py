@@ -16,6 +16,10 @@ BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
+# the command line keeps compiled programs on disk (`_compile_cache.enable_persistent_cache`); tests that run it in
+# this process must not write to the user's cache folder nor change how later tests compile (test_compile_cache.py
+# runs it in subprocesses with a folder of its own)
+os.environ["SMAFL_COMPILE_CACHE"] = "off"
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_DATA = ROOT.parent / "shared" / "data" / "real"

@@ -229,8 +229,11 @@ def main(argv=None):
         if not getattr(args, "func", None):
             parser.print_help()
             return 2
+        from .._compile_cache import enable_persistent_cache
         from .._progress import shown_on_stderr
 
+        # compiled programs kept on disk: a later run skips most compiling (`SMAFL_COMPILE_CACHE=off` disables it)
+        enable_persistent_cache()
         quiet = getattr(args, "quiet", False) or getattr(args, "no_progress", False)
         with _blas_threads(), shown_on_stderr(not quiet):
             return int(args.func(args) or 0)

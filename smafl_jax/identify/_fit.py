@@ -41,7 +41,7 @@ import optimistix as optx
 from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
-from .._compile_cache import release_if_needed
+from .._compile_cache import persistent_cache_dir, release_if_needed
 from .._errors import UserInputError
 from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
@@ -396,9 +396,11 @@ _COUNTED = ("lm", "gauss_newton", "bfgs")
 
 
 @eqx.filter_jit
-def _solve_optx(solver, raw_train, static, args, max_steps):
+def _solve_optx(solver, raw_train, static, args, max_steps, count=True):
     def fn(p, a):
-        jax.debug.callback(count_step)  # one per residual evaluation ~ one per step: progress with an estimate
+        if count:  # one per residual evaluation ~ one per step: progress with an estimate
+            # a host callback keeps the program out of JAX's persistent cache, so it is left out when that cache is on
+            jax.debug.callback(count_step)
         return _residuals(constrain(eqx.combine(p, static)), a)
 
     if isinstance(solver, optx.AbstractMinimiser):
@@ -468,7 +470,8 @@ def _refine(model, spec, args, solver, max_steps, rtol, atol, stall=True):
     stalled = False
     if solver in ("lm", "gauss_newton", "bfgs"):
         raw_train, static = eqx.partition(unconstrain(model), spec)
-        solve = _solve_optx(_make_optx_solver(solver, rtol, atol, stall), raw_train, static, args, max_steps)
+        solver_ = _make_optx_solver(solver, rtol, atol, stall)
+        solve = _solve_optx(solver_, raw_train, static, args, max_steps, count=persistent_cache_dir() is None)
         value, ok, n, loss, stalled = solve
         fitted = constrain(eqx.combine(value, static))
     elif solver in ("lbfgsb", "projected_gradient"):
@@ -599,7 +602,7 @@ def _fit(
     start = _lift_zero_gains(model, spec, profiled=init == "profile")
     say(f"joint refinement: {solver}, up to {max_steps} steps", progress)
     t1 = time.perf_counter()
-    counted = max_steps if solver in _COUNTED else None
+    counted = max_steps if solver in _COUNTED and persistent_cache_dir() is None else None
     with shown(progress), heartbeat(f"joint refinement ({solver})", enabled=progress, max_steps=counted):
         fitted, loss, n_steps, ok, stalled = _refine(start, spec, args, solver, max_steps, rtol, atol, stall)
     info["refine_seconds"] = time.perf_counter() - t1
