@@ -438,32 +438,41 @@ def _screen(start, data, weights, val_weights, signs, inputs, starts, inits, fre
     info)]`` of each output sign kept, best first, and one table row per candidate."""
     table, results = [], {}  # results[(sign, input, start, memory rule)] = (loss, profiled model, key, info)
     t_all = time.perf_counter()
+    screened = [0]  # candidates profiled so far (the table also holds the refined starts' rows)
+
+    # One record at rest with its first drive sample starts where a constant u(0) would hold it: the steady start is
+    # screened in that "given" form, so that all the starts of one structure share one compiled program (the rule
+    # names a static field), and named steady again after.  Several records keep the rule (each its own first sample).
+    steady_as_given = len(data) == 1 and thermal_of(start) is not None
+    u_first = float(np.asarray(data[0][0])[0])
 
     def candidate(sign, inp, th):
         m = _with_orientation(start, sign)
         if inp is not None:
             m = m.with_sees(inp, u_hi)
         if th == "steady":
-            m = m.with_thermal_start("steady")
+            m = m.with_thermal_start("given", u_first) if steady_as_given else m.with_thermal_start("steady")
         elif th is not None:
             m = m.with_thermal_start("given", _start_fraction(th) * u_hi)
         for init in inits:
             t0 = time.perf_counter()
+            screened[0] += 1
             row = {"orientation": sign, "sees": inp, "thermal_start": th, **({"memory": init} if init else {})}
             got = _profiled(m if init is None else _in_screening_form(m, init), data, weights, k1_grid)
             if got is None:
                 table.append({**row, "loss": None, "error": "model output not finite"})
                 continue
             table.append({**row, "loss": got[0], "seconds": time.perf_counter() - t0})
-            results[(sign, inp, th, init)] = (got[0], _with_rule(got[1], init), (sign, inp, th, init), got[2])
+            model = got[1].with_thermal_start("steady") if th == "steady" and steady_as_given else got[1]
+            results[(sign, inp, th, init)] = (got[0], _with_rule(model, init), (sign, inp, th, init), got[2])
 
     def report(sign, inp):
         if inp is not None:
             losses = [r[0] for k, r in results.items() if k[:2] == (sign, inp)]
             say(
                 f"  start screening: output {'rises' if sign > 0 else 'falls'}, hysteresis sees {inp}: best profiled loss "
-                f"{min(losses, default=np.inf):.6g} ({len(table)}/{n_cand} candidates, {time.perf_counter() - t_all:.0f} s, "
-                f"about {(time.perf_counter() - t_all) / max(len(table), 1) * max(n_cand - len(table), 0):.0f} s left)"
+                f"{min(losses, default=np.inf):.6g} ({screened[0]}/{n_cand} candidates, {time.perf_counter() - t_all:.0f} s, "
+                f"about {(time.perf_counter() - t_all) / max(screened[0], 1) * max(n_cand - screened[0], 0):.0f} s left)"
             )
 
     # Orientation first, on the first two starts (a wrong sign costs 10-100x in loss whatever the start);
