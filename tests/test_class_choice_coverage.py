@@ -1,0 +1,58 @@
+"""`--model auto` says when its class choice rests on extrapolation: every candidate's validation samples lie mostly on
+branches its training part never visited (`Candidate.coverage` below the coverage warning level)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import smafl_jax as sj
+from smafl_jax.report import _report_fit  # private: choose_structure with stand-in candidates
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import indep_direct
+
+
+@pytest.fixture(scope="module")
+def record(tmp_path_factory):
+    r = indep_direct.make_record(6, "preisach", "steps", n=400, dt=0.05, u_lo=0.2, u_span=6.0)
+    path = tmp_path_factory.mktemp("cov") / "v.csv"
+    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
+               comments="", fmt="%.9g")  # fmt: skip
+    return sj.load_record(path)
+
+
+def _candidates(record, coverage):
+    """`fit_one` stand-in: fixed validation RMSEs (the Preisach cascade lowest) and the given coverages."""
+    model = _report_fit.build_model("cascade", record)
+    rmse = {"auto": 0.3, "cascade-preisach": 0.1, "cascade-preisach-gauss": 0.2}
+
+    def fit_one(name, options):
+        m = {"validation": {"rmse": rmse[name], "e_r_percent": 10 * rmse[name]}, "train": {"rmse": rmse[name] / 2}}
+        doc = {"settings": {"structure": name}, "notes": [], "metrics": m}
+        return _report_fit.Candidate(model, m, None, lambda: (model, doc, None), coverage[name])
+
+    return fit_one
+
+
+@pytest.mark.parametrize(
+    ("coverage", "flagged"),
+    [
+        ({"auto": 0.04, "cascade-preisach": 0.3, "cascade-preisach-gauss": 0.12}, True),
+        ({"auto": 0.95, "cascade-preisach": 0.3, "cascade-preisach-gauss": 0.12}, False),  # one class was judged fairly
+        ({"auto": None, "cascade-preisach": 0.3, "cascade-preisach-gauss": 0.12}, False),  # not measured: say nothing
+    ],
+)
+def test_a_choice_made_on_extrapolation_says_so(record, monkeypatch, coverage, flagged):
+    monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: 1)
+    _, doc, _ = _report_fit.choose_structure(record, _candidates(record, coverage), {}, progress=False)
+    choice = doc["settings"]["structure_choice"]
+    assert choice["chosen"] == "cascade-preisach"  # the rule itself is unchanged
+    assert [c["validation_coverage"] for c in choice["candidates"]] == list(coverage.values())
+    assert choice.get("extrapolating", False) is flagged
+    assert ("uncertain" in choice["on"]) is flagged and ("uncertain" in doc["notes"][0]) is flagged
+    if flagged:
+        assert "4-30 %" in choice["on"] and "--model cascade" in choice["on"]
