@@ -177,8 +177,8 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     the lowest validation RMSE (``Candidate.metrics["validation"]``); returns the winner's ``finish()``, ``(model, doc,
     extra)``, with ``settings.structure_choice`` (each candidate's validation RMSE and e_r, train RMSE, validation
     coverage, seconds) and a first note.  Only the winner is finished (for one record: refitted on the whole record).
-    When every candidate's validation samples lie mostly on branches its training part never visited (coverage below
-    `COVERAGE_WARN`), the choice is flagged ``extrapolating`` and the note says it is uncertain.
+    When every candidate's validation coverage (samples on branches its training part visits) is below `COVERAGE_WARN`,
+    the choice is flagged ``extrapolating`` and the note says it is uncertain.
 
     Shared by the one-record fit (``validation``: the split's validation samples) and the multi-record fit (the
     leave-one-record-out mean).  A drive voltage: the default cascade is fitted first as ``"auto"``, then every other
