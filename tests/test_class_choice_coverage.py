@@ -1,5 +1,5 @@
-"""`--model auto` says when its class choice rests on extrapolation: every candidate's validation samples lie mostly on
-branches its training part never visited (`Candidate.coverage` below the coverage warning level)."""
+"""`--model auto` says when its class choice rests on extrapolation: for every candidate, fewer than 90 % of the
+validation samples lie on branches its training part visits (`Candidate.coverage` below the coverage warning level)."""
 
 from __future__ import annotations
 
