@@ -1,0 +1,158 @@
+"""Does the validation coverage say when `--model auto`'s class choice is unreliable?  (issue 18, session 27)
+
+Each record of the independent plant A (tests/indep_plant.py, plain numpy) is fitted on its first 70 % as each class
+`--model auto` compares (`cascade`, `cascade-preisach`, `cascade-preisach-gauss`, thresholds and tilts trained as auto
+trains them), and each saved model is scored on the last 30 % (RMSE / noise SD).  Per class the split fit's training
+RMSE, validation RMSE and validation coverage (fit.json `split.coverage`) are stored, so class-choice rules can be
+compared on what each would have kept.
+
+    python experiments/class_choice_coverage.py OUT.jsonl SEED...            # plant A, random_levels cells (one process)
+    python experiments/class_choice_coverage.py --plant-b OUT.jsonl SEED...  # plant B (experiments/indep_plant_b.py)
+    python experiments/class_choice_coverage.py --table OUT.jsonl...                        # the rules compared
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+CLASSES = ("cascade", "cascade-preisach", "cascade-preisach-gauss")
+CELLS = {
+    "random_levels cold 20 Hz length": dict(drive="random_levels", rate_hz=20, start="cold", orientation="length"),
+    "random_levels warm 10 Hz": dict(drive="random_levels", rate_hz=10, start="warm"),
+}
+#: plant B (experiments/indep_plant_b.py: Gaussian Preisach or Ikuta hysteresis, V^2/R(T) heating with radiation), where
+#: the EUPI cascade often cannot fit the training part: a rule that keeps the default class must not lose there
+CELLS_B = {
+    "B steps warm 5 Hz": dict(drive="steps", rate_hz=5, start="warm"),
+    "B multisine cold 25 Hz": dict(drive="multisine", rate_hz=25, start="cold"),
+    "B pwm mid 25 Hz length": dict(drive="pwm", rate_hz=25, start="mid", sensor="length"),
+}
+MINUTES = 5.0
+
+
+def _record(plant, seed, kw, folder=Path("/tmp")):
+    """``(csv path, heldout_start, noise_sd)`` of one independent record."""
+    p = folder / f"ccc_{plant}_{seed}_{kw['drive']}_{kw['rate_hz']}.csv"
+    if plant == "a":
+        import indep_plant as ip
+
+        r = ip.make_record(seed, minutes=MINUTES, **kw)
+        ip.write_csv(p, r)
+    else:
+        sys.path.insert(0, str(ROOT / "experiments"))
+        import indep_plant_b as pb
+
+        r = pb.make_record(seed, minutes=MINUTES, **kw)
+        pb.write_csv(p, r)
+    return p, r["heldout_start"], r["noise_sd"]
+
+
+def fits(out, seeds, plant="a"):
+    import smafl_jax as sj
+    from smafl_jax.report import fit_record
+
+    for seed in seeds:
+        for cell, kw in (CELLS if plant == "a" else CELLS_B).items():
+            p, h0, sd = _record(plant, seed, kw)
+            rec = sj.load_record(p)
+            p70 = p.with_name(p.stem + "_70.csv")
+            sj.atomic_write_csv(p70, {"time_s": rec.time[:h0], "voltage_V": rec.u[:h0], "displacement_mm": rec.y[:h0]})
+            for cls in CLASSES:
+                t0 = time.time()
+                model, doc, _ = fit_record(sj.load_record(p70), model=cls, thresholds=True, tilts=True)
+                e = np.asarray(sj.simulate(model, rec.u, rec.dt)) - rec.y
+                row = dict(
+                    cell=cell,
+                    seed=seed,
+                    cls=cls,
+                    noise_sd=sd,
+                    train_rmse=float(doc["metrics"]["train"]["rmse"]),  # the split fit on its training samples
+                    val_rmse=float(doc["metrics"]["validation"]["rmse"]),
+                    coverage=(doc["split"].get("coverage") or {}).get("covered_fraction"),
+                    train_x=float(np.sqrt(np.mean(e[:h0] ** 2)) / sd),
+                    held_x=float(np.sqrt(np.mean(e[h0:] ** 2)) / sd),
+                    seconds=time.time() - t0,
+                )
+                print(json.dumps(row), flush=True)
+                with open(out, "a") as f:
+                    f.write(json.dumps(row) + "\n")
+
+
+def table(paths):
+    recs = {}
+    for path in paths:
+        for line in open(path):
+            r = json.loads(line)
+            recs.setdefault((r["cell"], r["seed"]), {})[r["cls"]] = r
+    full = {k: v for k, v in recs.items() if set(v) == set(CLASSES)}
+
+    def gm(x):
+        return math.exp(sum(math.log(max(a, 1e-9)) for a in x) / len(x))
+
+    def val(v):
+        return min(v, key=lambda c: v[c]["val_rmse"])
+
+    def guard(v, tol=1.05):  # a class worse than the default on the split's training samples is not kept
+        ok = [c for c in v if c == "cascade" or v[c]["train_rmse"] <= tol * v["cascade"]["train_rmse"]]
+        return min(ok, key=lambda c: v[c]["val_rmse"])
+
+    def extrapolating(v):
+        return all(v[c]["coverage"] is not None and v[c]["coverage"] < 0.9 for c in v)
+
+    def default_when_extrapolating(v):
+        return "cascade" if extrapolating(v) else val(v)
+
+    def guard_when_extrapolating(v):
+        return guard(v) if extrapolating(v) else val(v)
+
+    def default_unless_it_cannot_fit(v, margin=0.8):
+        # every class extrapolates: the default class, unless another fits the split's training samples clearly better
+        if not extrapolating(v):
+            return val(v)
+        better = [c for c in v if c != "cascade" and v[c]["train_rmse"] <= margin * v["cascade"]["train_rmse"]]
+        return min(better, key=lambda c: v[c]["val_rmse"]) if better else "cascade"
+
+    rules = {
+        "lowest validation RMSE (today)": val,
+        "training guard (<= 1.05x the EUPI cascade)": guard,
+        "EUPI cascade when every class extrapolates": default_when_extrapolating,
+        "training guard when every class extrapolates": guard_when_extrapolating,
+        "EUPI cascade when every class extrapolates, unless another trains <= 0.8x": default_unless_it_cannot_fit,
+        "always the EUPI cascade": lambda v: "cascade",
+        "oracle (best held-out)": lambda v: min(v, key=lambda c: v[c]["held_x"]),
+    }
+    print("| record | flagged | " + " | ".join(f"{c} train / val / cov / held-out" for c in CLASSES) + " |")
+    print("|---|---|" + "---|" * len(CLASSES))
+    for k, v in sorted(full.items()):
+        cells = " | ".join(
+            f"{v[c]['train_rmse'] / v[c]['noise_sd']:.2f} / {v[c]['val_rmse'] / v[c]['noise_sd']:.2f} / "
+            f"{100 * (v[c]['coverage'] or 0):.0f} % / {v[c]['held_x']:.2f}"
+            for c in CLASSES
+        )
+        print(f"| {k[0]} s{k[1]} | {'yes' if extrapolating(v) else 'no'} | {cells} |")
+    print(
+        f"\n{len(full)} records ({sum(extrapolating(v) for v in full.values())} flagged); held-out / noise of the class each rule keeps:\n"
+    )
+    print("| rule | geometric mean | within 1.5x | within 3x |")
+    print("|---|---|---|---|")
+    for name, rule in rules.items():
+        h = [v[rule(v)]["held_x"] for v in full.values()]
+        print(f"| {name} | {gm(h):.2f} | {sum(x <= 1.5 for x in h)} | {sum(x <= 3 for x in h)} |")
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "--table":
+        table(sys.argv[2:])
+    elif sys.argv[1] == "--plant-b":
+        fits(sys.argv[2], [int(s) for s in sys.argv[3:]], plant="b")
+    else:
+        fits(sys.argv[1], [int(s) for s in sys.argv[2:]])
