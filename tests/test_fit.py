@@ -228,7 +228,14 @@ def test_cli_fit_writes_fit_json_and_simulate_accepts_it(tmp_path, datasets_dir,
     assert doc["data"]["sha256"] == sj.file_sha256(data)
     assert doc["data"]["input_column"] == "voltage_V" and doc["data"]["sample_time_s"] == pytest.approx(1.5)
     assert doc["model"]["type"] == "EUPI" and "versions" in doc and "settings" in doc
+    # errors in units of the output noise estimated from the data; a note (printed as a warning) above 2x on training
+    noise = doc["metrics"]["noise"]
+    assert noise["train_ratio"] == pytest.approx(doc["metrics"]["train"]["rmse"] / noise["sd"], rel=1e-12)
+    assert noise["validation_ratio"] == pytest.approx(doc["metrics"]["validation"]["rmse"] / noise["sd"], rel=1e-12)
+    assert any(n.startswith("above the noise floor") for n in doc["notes"]) == (noise["train_ratio"] > 2.0)
+    assert f"({noise['train_ratio']:.3g}x noise)" in capsys.readouterr().out
     report = (out / "report.md").read_text()
+    assert "RMSE / output noise SD" in report
     for f in ("fit_time.png", "fit_loops.png", "fit_residuals.png"):
         assert (out / f).exists() and f in report
     sim = tmp_path / "sim.csv"

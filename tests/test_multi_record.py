@@ -115,6 +115,7 @@ def test_cli_fit_several_files_folder_and_glob(tmp_path, capsys):
     doc = json.loads((tmp_path / "o1" / "fit.json").read_text())
     assert doc["data"]["n_records"] == 2 and [f["record"] for f in doc["validation"]["folds"]] == ["run0", "run1"]
     assert "byte-order mark" in doc["data"]["records"][0]["processing"][0]
+    assert len(doc["metrics"]["noise"]["per_record_sd"]) == 2 and doc["metrics"]["noise"]["sd"] > 0
     report = (tmp_path / "o1" / "report.md").read_text()
     assert "## Leave-one-record-out" in report and "## Baselines" in report and "## Data checks" in report
     out = capsys.readouterr().out

@@ -126,6 +126,7 @@ def run(args):
     from .._errors import UserInputError
     from ..data import load_records
     from ..data._data import parse_resample
+    from ..identify._metrics import ABOVE_NOISE
     from ..report._report_fit import STATIC_ON_DRIVE, fit_record, write_fit_outputs
 
     if args.max_steps < 0:
@@ -172,7 +173,7 @@ def run(args):
     if doc["settings"].get("structure_choice"):  # model auto compared classes: say which won and on what
         print(doc["notes"][0], file=sys.stderr)
     for note in doc["notes"]:
-        if note.startswith(STATIC_ON_DRIVE):
+        if note.startswith((STATIC_ON_DRIVE, ABOVE_NOISE)):
             print(f"warning: {note}", file=sys.stderr)
     train_rmse = doc["metrics"]["train"].get("rmse")
     if train_rmse is None or not math.isfinite(float(train_rmse)):  # never report a non-finite fit as a success
@@ -182,10 +183,11 @@ def run(args):
     if not sv["converged"]:
         print(f"warning: {sv['message']}", file=sys.stderr)
     tr, va = doc["metrics"]["train"], doc["metrics"]["validation"]
-    line = f"train rmse {tr['rmse']:.4g}, e_r {tr['e_r_percent']:.3g} %"
+    noise = doc["metrics"].get("noise") or {}
+    line = f"train rmse {tr['rmse']:.4g}{_in_noise(noise, 'train')}, e_r {tr['e_r_percent']:.3g} %"
     if va:
-        line += f"; validation rmse {va['rmse']:.4g}, e_r {va['e_r_percent']:.3g} %"
-    print(line)
+        line += f"; validation rmse {va['rmse']:.4g}{_in_noise(noise, 'validation')}, e_r {va['e_r_percent']:.3g} %"
+    print(line + _noise_sd(noise))
     cover = doc["split"].get("coverage", {}).get("warning")
     if cover:  # the validation block lies on a branch training never visited: its error is not a prediction error
         print(f"warning: {cover}", file=sys.stderr)
@@ -239,6 +241,16 @@ def _model_options(args, grid):
     )
 
 
+def _in_noise(noise, name):
+    """`` (1.02x noise)`` for a metric with a noise ratio in fit.json's ``metrics.noise``, else empty."""
+    r = noise.get(f"{name}_ratio")
+    return f" ({r:.3g}x noise)" if r is not None else ""
+
+
+def _noise_sd(noise):
+    return f"; output noise SD {noise['sd']:.3g} (estimated from the data)" if noise.get("sd") else ""
+
+
 def _print_extras(doc):
     """Baseline verdicts and the data-check summary of a fit.json document."""
     for sentence in (doc.get("baselines") or {}).get("verdict", []):
@@ -252,6 +264,7 @@ def _print_extras(doc):
 def _run_records(args, records, grid):
     """Several records: one joint model, leave-one-record-out validation, outputs like a one-record fit."""
     from .. import prepare_out_dir
+    from ..identify._metrics import ABOVE_NOISE
     from ..identify._multi_record import fit_records, write_records_outputs
 
     out = prepare_out_dir(args.out or f"fit_{records[0].name}_and_{len(records) - 1}_more")
@@ -269,11 +282,18 @@ def _run_records(args, records, grid):
     if args.early_stopping:
         print("note: --early-stopping applies to one record (its validation samples); not used here", file=sys.stderr)
     write_records_outputs(out, records, doc, details, figures=not args.no_figures)
+    for note in doc["notes"]:
+        if note.startswith(ABOVE_NOISE):
+            print(f"warning: {note}", file=sys.stderr)
     sv = doc["solver"]
     if not sv["converged"]:
         print(f"warning: {sv['message']}", file=sys.stderr)
     tr = doc["metrics"]["train"]
-    print(f"joint fit on all {len(records)} records (in sample): rmse {tr['rmse']:.4g}, e_r {tr['e_r_percent']:.3g} %")
+    noise = doc["metrics"].get("noise") or {}
+    print(
+        f"joint fit on all {len(records)} records (in sample): rmse {tr['rmse']:.4g}{_in_noise(noise, 'train')}, "
+        f"e_r {tr['e_r_percent']:.3g} %{_noise_sd(noise)}"
+    )
     v = doc["validation"]
     if v["folds"]:
         for f in v["folds"]:
@@ -284,8 +304,8 @@ def _run_records(args, records, grid):
         mm = v["mean"]["model"]
         if mm:
             print(
-                f"leave-one-record-out mean: rmse {mm['rmse']:.4g}, e_r {mm['e_r_percent']:.3g} % "
-                f"({mm['n_folds']} of {len(v['folds'])} folds)"
+                f"leave-one-record-out mean: rmse {mm['rmse']:.4g}{_in_noise(noise, 'validation')}, "
+                f"e_r {mm['e_r_percent']:.3g} % ({mm['n_folds']} of {len(v['folds'])} folds)"
             )
     _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))

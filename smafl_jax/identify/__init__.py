@@ -36,7 +36,7 @@ from ._choose import (
 )
 from ._decimate import decimate_mask, decimate_record, fit_stride
 from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
-from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, rmse
+from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, noise_floor, rmse
 from ._multi_record import (
     add_record_extras,
     data_checks_doc,
@@ -112,6 +112,7 @@ __all__ = [
     "max_abs_error",
     "mean_abs_error",
     "metrics",
+    "noise_floor",
     # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).
     "decimate_mask",
     "decimate_record",

@@ -38,7 +38,7 @@ from ..models._range import value_range
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._gain_prior import GAIN_PRIOR
-from ._metrics import metrics
+from ._metrics import metrics, noise_floor, noise_floor_note
 
 __all__ = ["fit_records", "write_records_outputs", "data_checks_doc", "data_checks_markdown", "add_record_extras"]
 
@@ -411,6 +411,9 @@ def _fit_records_structure(
                 "one thermal start rule is shared by all records (each record starts from it with its own first input); "
                 "a fitted start temperature is not per record"
             )
+    noise = noise_floor([r.y for r in records], train=pooled_train, validation=mean_model)
+    if noise_floor_note(noise):
+        notes.append(noise_floor_note(noise))
     if not res.converged:
         notes.append(f"solver: {res.message}")
     for f in folds:
@@ -437,7 +440,11 @@ def _fit_records_structure(
     dts = [float(r.dt) for r in records]
     doc = {
         **fit_header(res.model),
-        "metrics": {"train": pooled_train, "validation": mean_model},
+        "metrics": {
+            "train": pooled_train,
+            "validation": mean_model,
+            "noise": noise,
+        },
         "data": {
             "file": None,
             "files": [Path(r.path).name if r.path else None for r in records],
@@ -549,7 +556,13 @@ def _report_md(doc: dict, files: dict) -> str:
             "",
             f"Headline: mean held-out RMSE **{_fmt(mean['model'] and mean['model']['rmse'])}**, mean e_r "
             f"**{_fmt(mean['model'] and mean['model']['e_r_percent'])} %** over {len(v['folds'])} folds "
-            "(e_r per held-out record's output range).",
+            "(e_r per held-out record's output range)."
+            + (
+                f" Output noise SD {_fmt(doc['metrics']['noise']['sd'])} (estimated from the data): mean held-out RMSE = "
+                f"{_fmt(doc['metrics']['noise']['validation_ratio'])}x, in-sample {_fmt(doc['metrics']['noise']['train_ratio'])}x."
+                if (doc["metrics"].get("noise") or {}).get("sd")
+                else ""
+            ),
             "",
             "| held-out record | model RMSE | model e_r (%) | "
             + " | ".join(f"{k} RMSE | {k} e_r (%)" for k in BASELINES)

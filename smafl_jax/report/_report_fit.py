@@ -34,7 +34,7 @@ from ..identify._choose import (
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
-from ..identify._metrics import metrics
+from ..identify._metrics import metrics, noise_floor, noise_floor_note
 from ..identify._split import split_masks
 from ..models._cascade import Cascade
 from ..models._eupi import EUPI
@@ -563,6 +563,12 @@ def _fit_structure(
                 "validation metrics are those of the model fitted on the training samples only; the saved model is refitted "
                 "on the whole record with the same structure choices (split model in fit.json 'split_model'; --no-refit keeps it)"
             )
+        mets["noise"] = noise_floor(
+            [record.y], train=mets["train"], validation=mets["validation"], whole_record=mets.get("whole_record")
+        )
+        note = noise_floor_note(mets["noise"])
+        if note:
+            notes.append(note)
         if thermal_of(final) is not None:  # a thermal lag in front of a hysteresis: k2 cancels (a cascade)
             notes.append(K2_NOTE)
             prof = (res.info or {}).get("profile") or screen_info.get("profile") or {}
@@ -914,6 +920,10 @@ def _report_md(doc, files):
         ("n_samples", "samples"),
     ]:
         lines.append(f"| {label} | {_fmt(tr.get(key))} | {_fmt(va.get(key))} |")
+    noise = doc["metrics"].get("noise")
+    if noise:  # fit.json files written before session 28 have none
+        lines.append(f"| RMSE / output noise SD | {_fmt(noise.get('train_ratio'))} | {_fmt(noise.get('validation_ratio'))} |")
+        lines += ["", f"Output noise SD {_fmt(noise['sd'])}, estimated from the data: {noise['method']}."]
     from ..identify._baselines import baselines_markdown
     from ..identify._multi_record import data_checks_markdown
 
