@@ -9,6 +9,8 @@ compared on what each would have kept.
     python experiments/class_choice_coverage.py OUT.jsonl SEED...            # plant A, random_levels cells (one process)
     python experiments/class_choice_coverage.py --plant-b OUT.jsonl SEED...  # plant B (experiments/indep_plant_b.py)
     python experiments/class_choice_coverage.py --table OUT.jsonl...                        # the rules compared
+    python experiments/class_choice_coverage.py --ensembles OUT.jsonl...  # combinations of the classes' predictions
+                                                                          # (OUT.preds/, written by the fits since session 28)
 """
 
 from __future__ import annotations
@@ -69,7 +71,12 @@ def fits(out, seeds, plant="a"):
             for cls in CLASSES:
                 t0 = time.time()
                 model, doc, _ = fit_record(sj.load_record(p70), model=cls, thresholds=True, tilts=True)
-                e = np.asarray(sj.simulate(model, rec.u, rec.dt)) - rec.y
+                yhat = np.asarray(sj.simulate(model, rec.u, rec.dt))
+                e = yhat - rec.y
+                # predictions beside OUT, so combinations of the classes can be scored without refitting
+                preds = Path(out).with_suffix(".preds")
+                preds.mkdir(exist_ok=True)
+                np.savez(preds / f"{plant}_{seed}_{cell.replace(' ', '_')}_{cls}.npz", yhat=yhat, y=rec.y, h0=h0, sd=sd)
                 row = dict(
                     cell=cell,
                     seed=seed,
@@ -149,9 +156,58 @@ def table(paths):
         print(f"| {name} | {gm(h):.2f} | {sum(x <= 1.5 for x in h)} | {sum(x <= 3 for x in h)} |")
 
 
+def ensembles(paths):
+    """Held-out / noise of combinations of the three classes' predictions (session 28): does averaging the classes beat
+    choosing one?  The median of three is robust to one class that blows up on an untrained branch."""
+    for path in paths:
+        recs = {}
+        for line in open(path):
+            r = json.loads(line)
+            recs.setdefault((r["cell"], r["seed"]), {})[r["cls"]] = r
+        res = {}
+        for (cell, seed), v in sorted(recs.items()):
+            files = [
+                next(iter(Path(path).with_suffix(".preds").glob(f"*_{seed}_{cell.replace(' ', '_')}_{c}.npz")), None)
+                for c in CLASSES
+            ]
+            if len(v) < len(CLASSES) or None in files:
+                continue
+            P = {c: np.load(f) for c, f in zip(CLASSES, files)}
+            y, h0, sd = P["cascade"]["y"], int(P["cascade"]["h0"]), float(P["cascade"]["sd"])
+            Y = {c: P[c]["yhat"] for c in CLASSES}
+
+            def held(yh):
+                return float(np.sqrt(np.mean((yh[h0:] - y[h0:]) ** 2)) / sd)
+
+            best = min(CLASSES, key=lambda c: v[c]["val_rmse"])
+            order = sorted(CLASSES, key=lambda c: v[c]["val_rmse"])
+            w = np.array([1 / v[c]["val_rmse"] ** 2 for c in CLASSES])
+            median = held(np.median(np.stack([Y[c] for c in CLASSES]), 0))
+            flagged = all((v[c]["coverage"] or 0) < 0.9 for c in CLASSES)
+            rows = {
+                "lowest validation RMSE (today)": held(Y[best]),
+                "mean of the three": held(sum(Y.values()) / 3),
+                "median of the three": median,
+                "mean of the two best by validation": held((Y[order[0]] + Y[order[1]]) / 2),
+                "weights 1 / validation MSE": held(sum(wi / w.sum() * Y[c] for wi, c in zip(w, CLASSES))),
+                "median when every class extrapolates, else validation": median if flagged else held(Y[best]),
+                "always the EUPI cascade": held(Y["cascade"]),
+                "oracle class": min(held(Y[c]) for c in CLASSES),
+            }
+            for k, x in rows.items():
+                res.setdefault(k, []).append(x)
+        n = len(next(iter(res.values()), []))
+        print(f"\n{path}: {n} records\n\n| rule | geometric mean | within 1.5x | within 3x |\n|---|---|---|---|")
+        for k, x in res.items():
+            gmean = math.exp(sum(math.log(max(a, 1e-9)) for a in x) / len(x))
+            print(f"| {k} | {gmean:.2f} | {sum(a <= 1.5 for a in x)} | {sum(a <= 3 for a in x)} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "--table":
         table(sys.argv[2:])
+    elif sys.argv[1] == "--ensembles":
+        ensembles(sys.argv[2:])
     elif sys.argv[1] == "--plant-b":
         fits(sys.argv[2], [int(s) for s in sys.argv[3:]], plant="b")
     else:

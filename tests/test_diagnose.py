@@ -401,6 +401,12 @@ def test_cli_no_effect_selects_none(truth, drives, tmp_path, capsys):
     assert doc["selected"] == []
     assert doc["extended"]["heldout_rmse"] == doc["base"]["heldout_rmse"]
     assert all(c["evidence"]["p_value"] >= 0 for c in doc["candidates"])
+    # RMSEs in units of the output noise estimated from the data (the generator's noise SD is 0.003)
+    noise = doc["noise"]
+    assert noise["sd"] == pytest.approx(0.003, rel=0.25)
+    assert noise["base_heldout_ratio"] == pytest.approx(doc["base"]["heldout_rmse"] / noise["sd"], rel=1e-12)
+    assert f"{noise['base_heldout_ratio']:.3g}x -> " in capsys.readouterr().out
+    assert "In units of the output noise SD" in (out / "report.md").read_text()
     for f in ("extended_fit.json", "base_fit.json", "report.md", "residuals_before.png", "residuals_after.png"):
         assert (out / f).exists()
     ext = sj.load_model(out / "extended_fit.json")

@@ -10,7 +10,7 @@ import smafl_jax as sj
 from smafl_jax.identify._metrics import ABOVE_NOISE, NOISE_FLOOR_WARN, noise_floor_note  # private: the note's rule
 
 sys.path.insert(0, str(Path(__file__).parent))
-import indep_plant as ip  # noqa: E402
+import indep_plant as ip
 
 
 def _signal(rng, n, sd):

@@ -120,9 +120,15 @@ def run(args):
     sel = ", ".join(diag.selected) or "none"
     if diag.ambiguous:
         sel += f" (ambiguous with {', '.join(n for n in diag.ambiguous if n not in diag.selected)})"
+    noise = diag.report.get("noise") or {}
+    in_noise = (
+        f", {noise['base_heldout_ratio']:.3g}x -> {noise['extended_heldout_ratio']:.3g}x the output noise"
+        if noise.get("base_heldout_ratio") is not None and noise.get("extended_heldout_ratio") is not None
+        else ""
+    )
     print(
         f"selected: {sel}; held-out RMSE {diag.heldout_rmse_before:.4g} -> {diag.heldout_rmse_after:.4g} "
-        f"(e_r {diag.heldout_e_r_before:.2f} % -> {diag.heldout_e_r_after:.2f} %); wrote {out}"
+        f"(e_r {diag.heldout_e_r_before:.2f} % -> {diag.heldout_e_r_after:.2f} %{in_noise}); wrote {out}"
     )
     if diag.unexplained:
         print(f"unexplained: {diag.unexplained['verdict']}")

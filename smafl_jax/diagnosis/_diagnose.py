@@ -64,7 +64,7 @@ from .._errors import UserInputError
 from .._progress import LOGGER as PROGRESS
 from .._progress import Steps
 from ..effects import EFFECTS, ExtendedModel, Log, effect_rank
-from ..identify._metrics import metrics
+from ..identify._metrics import NOISE_FLOOR_WARN, metrics, noise_floor
 from ..models._cascade import Cascade
 from ..models._hysteresis import hysteresis_class, hysteresis_of, thermal_of
 from ..models._padding import padded_call
@@ -1410,6 +1410,16 @@ def diagnose(
     strongest = _strongest_correlate(
         residuals["heldout"]["signal_correlations"] if not selected else resid_after(chosen, split, ext_res_te)
     )
+    noise = noise_floor([record.y], base_train=base_tr, base_heldout=base_te, extended_train=ext_tr, extended_heldout=ext_te)
+    if selected and (noise["extended_train_ratio"] or 0.0) > NOISE_FLOOR_WARN:
+        # measured on clean independent records (issue 13): every false selection sat on a base at 2x the noise or more;
+        # a true effect brings the fit down to the noise, so misfit left after the selection is worth a warning
+        warnings.append(
+            f"with the selected effect the model still stays at {noise['extended_train_ratio']:.3g}x the output's noise "
+            f"SD ({noise['sd']:.4g}, estimated from the data) on its own training samples (base "
+            f"{noise['base_train_ratio']:.3g}x): structure is left that neither expresses, and the selection may absorb "
+            "part of that misfit rather than name a physical effect of this record"
+        )
     result = {
         "record": {
             "n_samples": len(record),
@@ -1466,6 +1476,7 @@ def diagnose(
             "heldout_e_r_after": ext_te["e_r_percent"],
         },
         "strongest_remaining_correlate": strongest,
+        "noise": noise,
         "ambiguous": ambiguous,
         "warnings": warnings,
         "selection": _selection_doc(rule, cal, min_gain, candidates, legacy_selected),

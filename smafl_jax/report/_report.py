@@ -112,6 +112,22 @@ def _plot(path, split, model_sim, title, ylabel="output"):
     plt.close(fig)
 
 
+def _noise_lines(noise):
+    """The diagnosis' RMSEs in units of the output noise estimated from the data (diagnosis.json ``noise``)."""
+    if not noise or not noise.get("sd"):
+        return []
+
+    def r(k):
+        return "n/a" if noise.get(k) is None else f"{noise[k]:.3g}x"
+
+    return [
+        "",
+        f"In units of the output noise SD ({noise['sd']:.4g}, estimated from the data: {noise['method']}): base "
+        f"{r('base_train_ratio')} train, {r('base_heldout_ratio')} held out; extended {r('extended_train_ratio')} train, "
+        f"{r('extended_heldout_ratio')} held out.",
+    ]
+
+
 def _report_md(rec, res):
     b, x = res["base"], res["extended"]
     u = unit_of(rec.output_name, getattr(rec, "units", None)) or f"units of '{rec.output_name}'"
@@ -131,6 +147,7 @@ def _report_md(rec, res):
         "|---|---|---|---|",
         f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
         f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |",
+        *_noise_lines(res.get("noise")),
         "",
         "## Base residuals",
         "",
