@@ -116,7 +116,11 @@ def test_cli_simulate_scores_against_measured_column(tmp_path, datasets_dir, cap
     err = sim[:, 3] - sim[:, 2]
     assert m["rmse"] == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-6) and m["rmse"] < 0.005
     assert m["e_r_percent"] == pytest.approx(np.max(np.abs(err)) / np.ptp(sim[:, 3]) * 100, rel=1e-6)
-    assert "against measured 'displacement_mm'" in capsys.readouterr().out
+    # the true model on its own noisy record leaves only the noise: RMSE about 1x the noise SD estimated from the data
+    assert m["noise"]["scored_ratio"] == pytest.approx(m["rmse"] / m["noise"]["sd"], rel=1e-12)
+    assert 0.8 < m["noise"]["scored_ratio"] < 1.25
+    printed = capsys.readouterr().out
+    assert "against measured 'displacement_mm'" in printed and "the measured output's noise SD" in printed
     assert cli_main(args + ["--measured", "force_N"]) == 2
 
 

@@ -108,11 +108,12 @@ def run(args):
         print(
             f"against measured '{measured}' after the segment (from {scored['scored_from_s']:.6g} s, {after['n_samples']} samples): "
             f"raw RMSE {raw['rmse']:.4g}, e_r {_pct(raw['e_r_percent'])}; re-anchored RMSE {after['rmse']:.4g}, "
-            f"e_r {_pct(after['e_r_percent'])} (eq. 3)"
+            f"e_r {_pct(after['e_r_percent'])} (eq. 3){_in_noise(scored)}"
         )
     elif scored is not None:
         print(
-            f"against measured '{measured}': RMSE {scored['rmse']:.4g}, max |error| {scored['max_abs_error']:.4g}, "
+            f"against measured '{measured}': RMSE {scored['rmse']:.4g}{_in_noise(scored)}, max |error| "
+            f"{scored['max_abs_error']:.4g}, "
             + (
                 f"e_r {scored['e_r_percent']:.2f} % (eq. 3)"
                 if np.isfinite(scored["e_r_percent"])
@@ -120,6 +121,12 @@ def run(args):
             )
         )
     return 0
+
+
+def _in_noise(scored: dict) -> str:
+    """`` (3.2x the output noise)`` from the scores' noise ratio (`smafl_jax.noise_floor`), else empty."""
+    r = (scored.get("noise") or {}).get("scored_ratio")
+    return f" ({r:.3g}x the measured output's noise SD)" if r is not None else ""
 
 
 def _pct(x: float) -> str:

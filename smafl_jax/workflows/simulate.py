@@ -283,6 +283,10 @@ def simulate_record(
                 "raw_after_segment": after["raw"],
                 "recalibrated_after_segment": after["recalibrated"],
             }
+        if scores is not None:  # the error over the measured output's own noise: 1x = only the noise is left
+            from ..identify._metrics import noise_floor
+
+            scores["noise"] = noise_floor([ym], scored={"rmse": scores["rmse"]})
         cols[measured_col] = ym
     if metrics_file is not None and scores is None:  # checked before anything is written
         raise UserInputError(f"{o('metrics_file')} needs a measured output column in the CSV (see {o('measured')})")
