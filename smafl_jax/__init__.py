@@ -41,6 +41,7 @@ else:
 
 _LAZY = {
     "Cascade": "models._cascade",
+    "MedianOfModels": "models._median",
     "POSITIVE_FLOOR": "models._constraints",
     "constrain": "models._constraints",
     "log_jacobian": "models._constraints",
@@ -176,6 +177,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_text",
     "Cascade",
+    "MedianOfModels",
     "ChainTooShortWarning",
     "closed_loop_metrics",
     "ClosedLoop",

@@ -20,6 +20,7 @@ from ._hysteresis import (
 )
 from ._initial_state import INITIAL_STATE_RULES, estimate_initial_state, with_initial_state
 from ._joule_lag import JouleLag
+from ._median import MedianOfModels
 from ._operators import (
     MODEL_METHODS,
     choose_model_method,
@@ -81,6 +82,7 @@ __all__ = [
     "JouleLag",
     "SEES",
     "Cascade",
+    "MedianOfModels",
     "MODEL_METHODS",
     "choose_model_method",
     "resolve_method",
