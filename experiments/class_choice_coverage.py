@@ -8,6 +8,7 @@ compared on what each would have kept.
 
     python experiments/class_choice_coverage.py OUT.jsonl SEED...            # plant A, random_levels cells (one process)
     python experiments/class_choice_coverage.py --plant-b OUT.jsonl SEED...  # plant B (experiments/indep_plant_b.py)
+    python experiments/class_choice_coverage.py --matrix OUT.jsonl SEED...   # plant A, issue 18's matrix cells, 20 min
     python experiments/class_choice_coverage.py --table OUT.jsonl...                        # the rules compared
     python experiments/class_choice_coverage.py --ensembles OUT.jsonl...  # combinations of the classes' predictions
                                                                           # (OUT.preds/, written by the fits since session 28)
@@ -39,15 +40,17 @@ CELLS_B = {
     "B pwm mid 25 Hz length": dict(drive="pwm", rate_hz=25, start="mid", sensor="length"),
 }
 MINUTES = 5.0
+#: ``--matrix``: issue 18's matrix cells (tests/indep_plant.MATRIX_CELLS) at the matrix's 20 minutes
+MATRIX_MINUTES = 20.0
 
 
 def _record(plant, seed, kw, folder=Path("/tmp")):
     """``(csv path, heldout_start, noise_sd)`` of one independent record."""
     p = folder / f"ccc_{plant}_{seed}_{kw['drive']}_{kw['rate_hz']}.csv"
-    if plant == "a":
+    if plant in ("a", "matrix"):
         import indep_plant as ip
 
-        r = ip.make_record(seed, minutes=MINUTES, **kw)
+        r = ip.make_record(seed, minutes=MATRIX_MINUTES if plant == "matrix" else MINUTES, **kw)
         ip.write_csv(p, r)
     else:
         sys.path.insert(0, str(ROOT / "experiments"))
@@ -58,12 +61,20 @@ def _record(plant, seed, kw, folder=Path("/tmp")):
     return p, r["heldout_start"], r["noise_sd"]
 
 
+def _cells(plant):
+    if plant == "matrix":
+        import indep_plant as ip
+
+        return ip.MATRIX_CELLS
+    return CELLS if plant == "a" else CELLS_B
+
+
 def fits(out, seeds, plant="a"):
     import smafl_jax as sj
     from smafl_jax.report import fit_record
 
     for seed in seeds:
-        for cell, kw in (CELLS if plant == "a" else CELLS_B).items():
+        for cell, kw in _cells(plant).items():
             p, h0, sd = _record(plant, seed, kw)
             rec = sj.load_record(p)
             p70 = p.with_name(p.stem + "_70.csv")
@@ -210,5 +221,7 @@ if __name__ == "__main__":
         ensembles(sys.argv[2:])
     elif sys.argv[1] == "--plant-b":
         fits(sys.argv[2], [int(s) for s in sys.argv[3:]], plant="b")
+    elif sys.argv[1] == "--matrix":
+        fits(sys.argv[2], [int(s) for s in sys.argv[3:]], plant="matrix")
     else:
         fits(sys.argv[1], [int(s) for s in sys.argv[2:]])

@@ -69,3 +69,31 @@ def test_bad_members():
         sj.MedianOfModels(_members()[:1])
     with pytest.raises(ValueError, match="no simulate"):
         sj.MedianOfModels((_members()[0], "cascade"))
+
+
+@pytest.mark.slow  # three classes screened and fitted, each refitted: about a minute on 2 cores
+def test_fit_record_median_of_the_classes(tmp_path, datasets_dir, capsys):
+    """`smafl fit --median`: median_fit.json holds the median of every compared class, refitted on the whole record."""
+    r = sj.load_record(datasets_dir / "minor_loop.csv")
+    data = tmp_path / "short.csv"
+    sj.atomic_write_csv(data, {"time_s": r.time[::2], "voltage_V": r.u[::2], "displacement_mm": r.y[::2]})
+    out = tmp_path / "fit"
+    argv = ["fit", str(data), "--median", "--max-steps", "3", "--no-figures", "--out", str(out)]
+    assert cli_main(argv + ["--n-sym", "4", "--n-alpha", "2", "--n-asym", "2"]) == 0
+    assert "median of cascade" in capsys.readouterr().out
+    doc = json.loads((out / "fit.json").read_text())
+    med = sj.load_model(out / "median_fit.json")
+    names = [c["structure"] for c in doc["settings"]["structure_choice"]["candidates"]]
+    assert doc["median"]["members"] == names and len(med.members) == len(names) >= 2
+    # the kept class is one member, and the median file scores as its metrics say on the whole record
+    kept = sj.load_model(out / "fit.json")
+    i = names.index(doc["settings"]["structure_choice"]["chosen"])
+    assert sj.model_to_dict(med.members[i]) == sj.model_to_dict(kept)
+    rec = sj.load_record(data)
+    y = np.asarray(sj.simulate(med, rec.u, rec.dt))
+    assert doc["median"]["metrics"]["whole_record"]["rmse"] == pytest.approx(np.sqrt(np.mean((y - rec.y) ** 2)), rel=1e-9)
+    assert "input_range" in json.loads((out / "median_fit.json").read_text())["data"]
+    with pytest.raises(ValueError, match="model auto"):
+        from smafl_jax.report import fit_record
+
+        fit_record(rec, model="cascade", median=True)
