@@ -182,8 +182,8 @@ def _median_doc(record, runs, kept, final, doc, extra, progress):
     """fit.json ``median``: the sample-by-sample median of every compared class (`MedianOfModels`), each class refitted
     on the whole record, with the median of the split models scored on the same training / validation samples.
 
-    Why: on 36 independent records the median of the three classes held out 0.68x (plant A) and 0.85x (plant B) the
-    geometric-mean error of the class the validation block keeps (experiments/results/random_levels_20min_session28.md).
+    Why: on 48 independent records the median of the three classes held out 0.82x the geometric-mean error of the
+    class the validation block keeps (experiments/results/random_levels_20min_session28.md).
     """
     from ..models._median import MedianOfModels
 
