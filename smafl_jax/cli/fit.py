@@ -116,8 +116,9 @@ def add_parser(sub):
         "--median",
         action="store_true",
         help="with --model auto on one record: also write median_fit.json, the sample-by-sample median of every class "
-        "compared, each refitted on the whole record (one refit more per class; on 48 independent records it held out "
-        "0.82x the geometric-mean error of the class the validation block keeps; README, session 28)",
+        "compared, each refitted on the whole record (one refit more per class; on 60 independent records it held out "
+        "0.88x the geometric-mean error of the class the validation block keeps, but not on every kind of record; "
+        "README, session 28)",
     )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")

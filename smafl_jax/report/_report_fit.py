@@ -182,8 +182,8 @@ def _median_doc(record, runs, kept, final, doc, extra, progress):
     """fit.json ``median``: the sample-by-sample median of every compared class (`MedianOfModels`), each class refitted
     on the whole record, with the median of the split models scored on the same training / validation samples.
 
-    Why: on 48 independent records the median of the three classes held out 0.82x the geometric-mean error of the
-    class the validation block keeps (experiments/results/random_levels_20min_session28.md).
+    Why: on 60 independent records the median of the three classes held out 0.88x the geometric-mean error of the
+    class the validation block keeps (experiments/results/random_levels_20min_session28.md; worse on issue 18's matrix).
     """
     from ..models._median import MedianOfModels
 
