@@ -31,7 +31,7 @@ PUBLIC_API = (
     "default_trainable", "diagnose", "diagnostics", "e_mean", "effective_voltage", "error_ratio",
     "estimate_initial_state", "file_sha256", "fit", "fit_many", "fit_records", "hysteresis_of", "init_linear",
     "init_profile", "initialize_from_env", "load_model", "load_model_file", "load_priors", "load_record", "load_run",
-    "log_jacobian", "max_abs_error", "mean_abs_error", "metrics", "model_from_dict", "model_to_dict", "noise_floor", "MedianOfModels",
+    "log_jacobian", "max_abs_error", "mean_abs_error", "metrics", "model_from_dict", "model_to_dict", "noise_floor", "search_memory", "MedianOfModels",
     "model_with_method", "parameter", "play", "play_assoc", "play_scan", "play_step", "play_weighted", "positive",
     "positive_mask", "prepare_out_dir", "recalibrate", "register_model", "rmse", "run_control", "run_sampler",
     "run_sweep", "sample_posterior", "save_model", "simulate", "simulate_batch", "simulate_closed_loop",

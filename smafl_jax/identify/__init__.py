@@ -36,6 +36,7 @@ from ._choose import (
 )
 from ._decimate import decimate_mask, decimate_record, fit_stride
 from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_many, init_linear, init_profile
+from ._memory_search import MEMORY_FRACTIONS, MEMORY_SWEEPS, search_memory
 from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, noise_floor, rmse
 from ._multi_record import (
     add_record_extras,
@@ -48,7 +49,7 @@ from ._multi_record import (
 from ._recalibrate import CALIBRATION_PARAMETERS, Recalibrated, after_segment_metrics, recalibrate, segment_indices
 from ._split import SPLITS, split_masks
 from ._stall import STALL_MIN_GAIN, STALL_WINDOW, StallStop
-from .linear import METHODS, LinearSolution, column_scale, solve
+from .linear import METHODS, LinearSolution, column_scale, solve, solve_gram
 from .varpro import Bounded, LinearProjection, NelderMead, Profiled, Search, search
 
 __all__ = [
@@ -56,6 +57,7 @@ __all__ = [
     "LinearSolution",
     "column_scale",
     "solve",
+    "solve_gram",
     "Profiled",
     "LinearProjection",
     "Bounded",
@@ -79,6 +81,9 @@ __all__ = [
     "shared_screening",
     "refine_thermal_start",
     "fitted_memory_start",
+    "search_memory",
+    "MEMORY_FRACTIONS",
+    "MEMORY_SWEEPS",
     "COLD_FRACTION",
     "START_FRACTIONS",
     "split_masks",

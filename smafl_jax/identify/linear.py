@@ -41,7 +41,7 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["LinearSolution", "solve", "column_scale", "METHODS"]
+__all__ = ["LinearSolution", "solve", "solve_gram", "column_scale", "METHODS"]
 
 METHODS = ("bvls", "nnls")
 SCALE_FLOOR = 1e-12  # columns with RMS below this are treated as having RMS 1e-12 (all-zero columns)
@@ -208,3 +208,29 @@ def solve(
         Gf[np.diag_indices_from(Gf)] += jit
         out_dof = float(np.trace(np.linalg.solve(Gf, Gf0)))
     return LinearSolution(x, 0.5 * float(r @ r), out_dof)
+
+
+def solve_gram(G, h, bb: float, nonneg=None, *, jitter: float = 1e-12) -> LinearSolution:
+    """`solve` (BVLS, column-scaled, non-negative columns) from the normal equations: ``G = A' A``, ``h = A' b``,
+    ``bb = b' b``; ``loss`` is ``0.5 |A x - b|^2``.
+
+    Why: a search that swaps one column of ``A`` at a time (`smafl_jax.identify.search_memory`) updates one row and
+    column of ``G`` instead of forming ``A' A`` again (``p x p`` work per trial instead of ``n p^2``).
+    """
+    G = np.asarray(G, dtype=np.float64)
+    h = np.asarray(h, dtype=np.float64)
+    p = G.shape[0]
+    if G.shape != (p, p) or h.shape != (p,):
+        raise ValueError(f"G must be (p, p) and h (p,), got {G.shape} and {h.shape}")
+    nonneg, lb, ub = _bounds(p, nonneg, None, None)
+    s = np.maximum(np.sqrt(np.maximum(np.diag(G), 0.0)), SCALE_FLOOR)
+    Gs = G / np.outer(s, s)
+    hs = h / s
+    Gj = Gs.copy()
+    Gj[np.diag_indices_from(Gj)] += jitter * max(float(np.trace(Gs)) / p, 1e-300)
+    R = scipy.linalg.cholesky(Gj, lower=False)
+    c = scipy.linalg.solve_triangular(R, hs, trans="T")
+    z = lsq_linear(R, c, bounds=(lb * s, ub * s), method="bvls").x
+    x = np.clip(z / s, lb, ub)
+    zs = x * s
+    return LinearSolution(x, max(0.5 * float(bb - 2.0 * zs @ hs + zs @ Gs @ zs), 0.0))

@@ -239,6 +239,18 @@ class EUPI(AbstractHysteresis):
         logit = DESCENDED_LOGIT if logit is None else logit
         return dataclasses.replace(self, init="fitted", memory=jnp.full(self.n_operators, float(logit)))
 
+    def memory_columns(self, x, fractions):
+        """``(columns, C)``: every operator's signed column for each row of start ``fractions`` ``(K, n_operators)``
+        (`AbstractHysteresis.memory_columns`), one scan of ``K x n_operators`` operators."""
+        return np.arange(1, 1 + self.n_operators), _memory_columns(self, jnp.asarray(x), jnp.asarray(fractions))
+
+    def with_memory_fractions(self, fractions) -> EUPI:
+        """Copy with ``init="fitted"`` whose operators start ``fractions`` of the way between their bounds."""
+        f = np.clip(np.asarray(fractions, dtype=np.float64), 1e-4, 1.0 - 1e-4)
+        if f.shape != (self.n_operators,):
+            raise ValueError(f"need one fraction per operator ({self.n_operators}), got shape {f.shape}")
+        return dataclasses.replace(self, init="fitted", memory=jnp.asarray(np.log(f / (1.0 - f))))
+
     def with_init(self, init: str) -> EUPI:
         """Copy started by the rule ``init``; a fitted memory is dropped (its logits belong to ``init="fitted"``)."""
         if init == "fitted":
@@ -403,3 +415,15 @@ class EUPI(AbstractHysteresis):
         ops = play_weighted(s, r, a, w, y0=self._initial_state(s[0], r, a), method=self.method)
         poly = poly_columns(s, np.shape(self.poly)[0]) @ self.poly
         return float(self.orientation) * (self.gain * s + ops) + poly + self.offset
+
+
+@eqx.filter_jit
+def _memory_columns(model: EUPI, x, fractions):
+    """`EUPI.memory_columns`: the bank repeated once per row of ``fractions``, each copy started at its row."""
+    s = model.normalise(x)
+    r, a = model._bank()
+    k, n = fractions.shape
+    lo, up = s[0] - r, a * (s[0] + r)
+    y0 = jnp.reshape(lo[None, :] + fractions * (up - lo)[None, :], (k * n,))
+    ops = play(s, jnp.tile(r, k), jnp.tile(a, k), y0=y0, method=model.method)
+    return float(model.orientation) * jnp.moveaxis(jnp.reshape(ops, (s.shape[0], k, n)), 1, 0)

@@ -220,6 +220,19 @@ class AbstractHysteresis(eqx.Module):
         del method
         return self
 
+    def memory_columns(self, x, fractions) -> tuple[np.ndarray, jnp.ndarray] | None:
+        """Design columns of a memory held per operator, for the per-operator search of the state at t = 0
+        (`smafl_jax.identify.search_memory`): ``(columns, C)`` with ``columns`` the indices of the operator columns in
+        `features` and ``C[k, :, i]`` operator ``i``'s column when it starts ``fractions[k, i]`` of the way from its
+        lower to its upper bound at the first input.  None (the default): the class has no such memory."""
+        del x, fractions
+        return None
+
+    def with_memory_fractions(self, fractions) -> AbstractHysteresis:
+        """Copy whose operators start ``fractions`` (one per operator, in (0, 1)) of the way between their bounds
+        (the form `memory_columns` searches).  Only for a class whose `memory_columns` is not None."""
+        raise NotImplementedError(f"{type(self).__name__} has no per-operator memory")
+
     # -- as a model: a hysteresis is its own hysteresis part --------------------------
     @property
     def hysteresis(self) -> AbstractHysteresis:
