@@ -280,6 +280,10 @@ def test_fit_data_accepts_two_records_and_is_idempotent(datasets_dir):
     assert len(sj.as_fit_data(tuple(recs))) == 2
     pair = sj.as_fit_data((recs[0].u, recs[0].y), dt=0.5)
     assert len(pair) == 1 and pair[0][2] == 0.5
+    triple = sj.as_fit_data((recs[0].u, recs[0].y, 0.25))  # one (u, y, dt) triple
+    assert len(triple) == 1 and triple[0][2] == 0.25 and np.array_equal(triple[0][1], recs[0].y)
+    three = sj.as_fit_data(tuple(triple * 3))  # three triples stay three records
+    assert len(three) == 3 and all(t[2] == 0.25 for t in three)
 
 
 def test_fit_says_when_it_would_run_on_an_accelerator(monkeypatch):

@@ -73,8 +73,8 @@ class FitResult(NamedTuple):
 def as_fit_data(data: Any, dt: float | None = None) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
     """Normalise fit data to a tuple of ``(u, y, dt)`` float64 numpy triples.
 
-    Accepts a `Record`, a sequence of `Record`, a ``(u, y)`` pair with ``dt``,
-    or a sequence of ``(u, y, dt)`` triples.
+    Accepts a `Record`, a sequence of `Record`, a ``(u, y)`` pair with ``dt``, one ``(u, y, dt)`` triple
+    or a sequence of them.
     """
     from ..data._data import Record
 
@@ -82,6 +82,8 @@ def as_fit_data(data: Any, dt: float | None = None) -> tuple[tuple[np.ndarray, n
         data = [data]
     elif isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], (tuple, list, Record)) and np.ndim(data[0]) == 1:
         data = [(data[0], data[1], dt)]
+    elif isinstance(data, tuple) and len(data) == 3 and not isinstance(data[0], (tuple, list, Record)) and np.ndim(data[0]) == 1:
+        data = [data]  # one (u, y, dt) triple, not a sequence of three records
     out = []
     for i, item in enumerate(data):
         if isinstance(item, Record):
