@@ -36,7 +36,7 @@ def search_memory(model: Any, data: tuple, weights: tuple, *, fractions=MEMORY_F
     ``data`` / ``weights``: one normalised ``(u, y, dt)`` record and its sample weights (0 = not fitted).  The current
     positions are candidates too; None as well when no operator moved.
     """
-    from ._fit import _linear_part, init_linear
+    from ._fit import _features, _linear_part, init_linear
 
     h = hysteresis_of(model)
     part = _linear_part(model)
@@ -55,7 +55,7 @@ def search_memory(model: Any, data: tuple, weights: tuple, *, fractions=MEMORY_F
     if got is None:
         return None
     cols, C = got
-    A = np.asarray(feats(model, jnp.asarray(u), dt), dtype=np.float64)
+    A = np.asarray(_features(feats, model, jnp.asarray(u), jnp.asarray(dt)), dtype=np.float64)  # the fit's jitted design
     C = np.asarray(C, dtype=np.float64)
     if not np.allclose(A[:, cols], C[0], rtol=1e-9, atol=1e-12 * max(float(np.max(np.abs(A))), 1.0)):
         return None  # the model's design is not the hysteresis' own operator columns
