@@ -13,6 +13,7 @@ from ._diagnose import (
     effect_evidence,
     fit_extended,
     fold_splits,
+    folds_gate,
     make_split,
     n_parameters,
     profile_gains,
@@ -81,6 +82,7 @@ __all__ = [
     # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).
     "applicable_effects",
     "fold_splits",
+    "folds_gate",
     "n_parameters",
     "profile_gains",
     "refine_model",

@@ -682,6 +682,53 @@ def refined_base(base, start, split, verbose=False):
     return model, profiled, doc
 
 
+#: Passes of `converged_base` at most, and the relative training-SSE gain below which a pass has converged.
+BASE_PASSES, BASE_PASS_RTOL = 3, 1e-3
+
+
+def converged_base(base, split, verbose=False):
+    """``(model, passes)``: the refined base passed again through a candidate's procedure without an effect (variable
+    projection of the gains with the thermal rate searched, then `refine_model`) until a pass lowers the training SSE
+    by less than ``BASE_PASS_RTOL`` (at most ``BASE_PASSES`` passes); a pass that raises the held-out error is not kept.
+
+    Why: a candidate fitted from the refined base gets one such pass more than the base; on a clean independent record
+    every one of 13 candidates then held out 7-34 % better than the base (sensor_lead selected), a gain of the extra
+    pass, not of any effect. With the base converged, a candidate's gain is its effect's."""
+    passes = []
+    sse, held = _train_sse(base, split.train), _held(base, split)["rmse"]
+    for _ in range(BASE_PASSES):
+        m = refine_model(fit_extended(base, [], split)[0], split)
+        new, held_new = _train_sse(m, split.train), _held(m, split)["rmse"]
+        passes.append({"train_sse_before": sse, "train_sse_after": new, "heldout_rmse_after": held_new})
+        # kept as `refine_model` keeps a refinement: lower training loss without a higher held-out error
+        if not (np.isfinite(new) and new < sse and held_new <= held):
+            break
+        held = held_new
+        base, gain, sse = m, (sse - new) / sse, new
+        if gain < BASE_PASS_RTOL:
+            break
+    _log("base passes: " + ", ".join(f"{p['train_sse_before']:.4g} -> {p['train_sse_after']:.4g}" for p in passes), verbose)
+    return base, passes
+
+
+def _from_refined_base_too(m, info, base, cand_start, name, split, verbose=False):
+    """The candidate ``name`` fitted from the refined base as well, keeping the lower TRAINING loss of the two fits.
+
+    Why: the candidate nests the base (effect strength 0), yet from the profiled start alone its refinement can end
+    above the refined base in training (rejected by the held-out gate, or a poorer local minimum): an independent
+    rate-dependence record, base 1.17x the noise in training, its candidate 1.34x. The choice is made on training
+    data only; the null records' candidates start from the refined base already (`calibration_gates`)."""
+    if base is cand_start:
+        return m, info
+    m2, info2 = fit_extended(base, [name], split, verbose=verbose)
+    m2 = refine_model(m2, split)
+    sse1, sse2 = _train_sse(m, split.train), _train_sse(m2, split.train)
+    info = {**info, "start": "profiled base", "train_sse_from_profiled_base": sse1, "train_sse_from_refined_base": sse2}
+    if np.isfinite(sse2) and not sse2 >= sse1:
+        return m2, {**info2, **{k: v for k, v in info.items() if k != "start"}, "start": "refined base"}
+    return m, info
+
+
 def _product(lists):
     out = [()]
     for lst in lists:
@@ -917,6 +964,24 @@ def _held(model, split):
     return te
 
 
+#: Floor of a fold's gain in the mean-fold clause: a fold whose held-out error more than doubles has diverged (its
+#: re-profiled gains blow up on a block the other blocks never excited) and counts as a doubling, so that one such
+#: fold cannot outweigh the others by its size alone. Measured on the 141 stored fold tests (`.notes/session30/
+#: fold_rule.py`): the floor admits the output_lag record of seed 1 (fold gains -57.7, +0.72, +0.46) and no wrong name.
+FOLD_GAIN_FLOOR = -1.0
+
+
+def folds_gate(gains) -> tuple[bool, float]:
+    """``(passed, mean)``: the gain is positive in all folds or all but one, and the one exception does not outweigh
+    the others (the mean of the gains, each floored at `FOLD_GAIN_FLOOR`, is positive)."""
+    gains = [float(g) for g in gains]
+    if not gains:
+        return False, 0.0
+    mean = float(np.mean(np.maximum(gains, FOLD_GAIN_FLOOR)))
+    n_pos = sum(g > 0 for g in gains)
+    return bool(len(gains) >= 2 and n_pos >= len(gains) - 1 and mean > 0), mean
+
+
 def calibration_gates(
     record,
     split,
@@ -945,7 +1010,7 @@ def calibration_gates(
     2. ``max_error``: held-out max |error| (the numerator of e_r) not raised;
     3. ``folds``: on each of K contiguous blocks held out in turn (branch records: the three branch residues),
        both models refitted (linear gains re-profiled), the gain is positive in all folds or all but one, and the
-       mean fold gain is positive;
+       mean fold gain (each fold's gain floored at ``FOLD_GAIN_FLOOR``) is positive;
     4. ``null``: the gain exceeds the (1 - fpr) quantile of the gains the same effect reaches on ``n_null``
        null records simulated from ``current`` with its own residual structure (`null_records`), each refitted
        exactly like the real record (current: warm start; effect: its grid of starts); the quantile is a normal
@@ -990,13 +1055,14 @@ def calibration_gates(
             }
         )
         steps.advance()
-    n_pos = sum(f["gain"] > 0 for f in folds)
+    gains = [f["gain"] for f in folds]
+    n_pos = sum(g > 0 for g in gains)
     out["folds"] = folds
     out["folds_positive"] = f"{n_pos}/{len(folds)}"
-    mean_fold = float(np.mean([f["gain"] for f in folds])) if folds else 0.0
+    out["mean_fold_gain_raw"] = float(np.mean(gains)) if folds else 0.0
+    out["gates"]["folds"], mean_fold = folds_gate(gains)
     out["mean_fold_gain"] = mean_fold
-    # all (or all but one) folds positive, and the one exception must not outweigh the others (mean gain > 0)
-    out["gates"]["folds"] = bool(len(folds) >= 2 and n_pos >= len(folds) - 1 and mean_fold > 0)
+    out["fold_gain_floor"] = FOLD_GAIN_FLOOR
     _log(f"  {name}: fold gains {[round(f['gain'], 3) for f in folds]} ({time.time() - t0:.1f} s)", verbose)
     if not out["gates"]["folds"]:
         out["reason"] = f"held-out gain positive in {n_pos} of {len(folds)} folds, mean fold gain {100 * mean_fold:+.1f} %"
@@ -1156,7 +1222,8 @@ def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
         "rule": "calibrated",
         "description": (
             f"accepted when (1) the held-out RMSE gain >= {100 * min_gain:g} %, (2) the held-out max |error| is not "
-            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds (and on average) "
+            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds (and on average, each fold floored at "
+            f"{100 * FOLD_GAIN_FLOOR:+.0f} %) "
             f"({cal['n_folds']} contiguous time blocks, or the 3 branch residues), both models refitted per fold, and "
             f"(4) the gain exceeds the (1 - fpr) quantile (normal approximation) and the maximum of the gains the same "
             f"effect reaches on {cal['n_null']} null records (the fitted model without it plus an AR fit of its own "
@@ -1294,6 +1361,7 @@ def diagnose(
     cand_start = base
     if refine:
         base, cand_start, base_info["refinement"] = refined_base(base, base0, split, verbose)
+        base, base_info["refinement"]["passes"] = converged_base(base, split, verbose)
     base_tr, base_te = _metrics_pair(base, split)
     base_ic = information_criteria(base, split.train)
     _, res_tr = score(base, split.train)
@@ -1343,6 +1411,7 @@ def diagnose(
             m, info = fit_extended(cand_start, [name], split, verbose=verbose)
             if refine:
                 m = refine_model(m, split)
+                m, info = _from_refined_base_too(m, info, base, cand_start, name, split, verbose)
             tr, te = _metrics_pair(m, split)
             ic = information_criteria(m, split.train)
             entry.update(

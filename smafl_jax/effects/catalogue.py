@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
-from ..models._constraints import positive
+from ..models._constraints import as_float_array, positive
 from .protocol import (
     AbstractFeatureEffect,
     AbstractInputEffect,
@@ -71,15 +72,16 @@ def fractional_delay(x, delay_samples):
     return x[i0] * (1.0 - frac) + x[i1] * frac
 
 
-def _lowpass(x, dt, tau):
-    """Exact first-order lag of a ZOH signal, state starting at ``x(0)`` (columns filtered independently)."""
+def _lowpass(x, dt, tau, z0=None):
+    """Exact first-order lag of a ZOH signal, state starting at ``z0`` (default ``x(0)``: at rest; columns filtered
+    independently)."""
     a = jnp.exp(-dt / tau)
 
     def step(z, xk):
         z = a * z + (1.0 - a) * xk
         return z, z
 
-    _, z = jax.lax.scan(step, x[0], x)
+    _, z = jax.lax.scan(step, x[0] if z0 is None else z0, x)
     return z
 
 
@@ -241,26 +243,49 @@ class AsymmetricCooling(AbstractThermalEffect):
     name: ClassVar[str] = "asymmetric_cooling"
     needs: ClassVar[tuple] = ("thermal",)
     physics: ClassVar[str] = (
-        "Cooling (heat loss to a still environment, latent heat of the reverse transformation) runs at a different rate than Joule heating: the rate is k1 exp(log_ratio) while the state falls."
+        "Cooling (heat loss to a still environment, latent heat of the reverse transformation) runs at a different rate than "
+        "Joule heating: while the state falls the rate is k1 exp(log_ratio) / (1 + latent exp(-((q / q_ref - q_tr) / "
+        "width)^2)): a uniform ratio, and the latent heat the reverse transformation releases in a band of temperatures "
+        "(q_tr its centre, width its half-width, both as fractions of q_ref) that holds the cooling back there."
     )
-    parameters: ClassVar[dict] = {"log_ratio": "log of cooling rate / heating rate (signed)"}
-    synthetic: ClassVar[str] = "log_ratio ~ +-U(0.3, 0.7)"
+    parameters: ClassVar[dict] = {
+        "log_ratio": "log of cooling rate / heating rate (signed)",
+        "latent": "extra heat capacity at the centre of the transformation band, relative (>= 0; 0: no band)",
+        "q_tr": "centre of the band, fraction of q_ref",
+        "width": "half-width of the band, fraction of q_ref (> 0)",
+    }
+    synthetic: ClassVar[str] = "log_ratio ~ +-U(0.3, 0.7), no band"
+    #: Range of the band's centre and width (fractions of q_ref) in a fit.
+    Q_TR_RANGE: ClassVar[tuple] = (0.02, 1.2)
+    WIDTH_RANGE: ClassVar[tuple] = (0.02, 0.6)
     log_ratio: jnp.ndarray
+    # defaults (no band): models saved before the band existed load and run unchanged
+    latent: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)
+    q_tr: jnp.ndarray = eqx.field(default=0.5, converter=as_float_array)
+    width: jnp.ndarray = eqx.field(default=0.2, converter=as_float_array)
 
-    def rate(self, rate, target, q):
-        return jnp.where(target < q, rate * jnp.exp(self.log_ratio), rate)
+    def rate(self, rate, target, q, q_ref):
+        band = self.latent * jnp.exp(-jnp.square((q / q_ref - self.q_tr) / self.width))
+        return jnp.where(target < q, rate * jnp.exp(self.log_ratio) / (1.0 + band), rate)
 
     @classmethod
     def nonlinear(cls, ctx):
-        return (Nonlinear("log_ratio", Linear(), 0.2),)
+        return (
+            Nonlinear("log_ratio", Linear(), 0.2),
+            Nonlinear("latent", Log(), 0.5),
+            Nonlinear("q_tr", LogBox(*cls.Q_TR_RANGE), 0.5),
+            Nonlinear("width", LogBox(*cls.WIDTH_RANGE), 0.5),
+        )
 
     @classmethod
     def grid(cls, ctx):
-        return [cls(log_ratio=_a(r)) for r in (-0.7, -0.25, 0.25, 0.7)]
+        ratio = [cls(log_ratio=_a(r), latent=_a(0.01)) for r in (-0.7, -0.25, 0.25, 0.7)]
+        band = [cls(log_ratio=_a(0.0), latent=_a(2.0), q_tr=_a(c), width=_a(0.15)) for c in (0.25, 0.5, 0.75)]
+        return ratio + band
 
     @classmethod
     def probes(cls, ctx):
-        return [cls(log_ratio=_a(0.05))]
+        return [cls(log_ratio=_a(0.05), latent=_a(0.01))]
 
     @classmethod
     def synthesise(cls, rng, ctx):
@@ -348,28 +373,56 @@ class RateDependence(AbstractThresholdEffect):
     name: ClassVar[str] = "rate_dependence"
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
-        "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the polymer, rate-dependent phase transformation)."
+        "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the "
+        "polymer, rate-dependent phase transformation); the rate is the one the material has felt over the last tau_f "
+        "seconds (a first-order filter; tau_f = 0: the instantaneous rate)."
     )
-    parameters: ClassVar[dict] = {"c": "threshold widening per unit normalised rate (per 100 s) (> 0)"}
-    synthetic: ClassVar[str] = "c ~ U(0.5, 1.5)"
+    parameters: ClassVar[dict] = {
+        "c": "threshold widening per unit normalised rate (per 100 s) (> 0)",
+        "tau_f": "time constant (s) of the rate's first-order filter, >= 0 (0: unfiltered)",
+    }
+    synthetic: ClassVar[str] = "c ~ U(0.5, 1.5), tau_f = 0"
+    #: Upper bound of the fitted ``tau_f`` (s): slower than this the widening is a slow drift, not a rate effect.
+    TAU_F_MAX: ClassVar[float] = 30.0
     c: jnp.ndarray = positive()
+    # default 0 (unfiltered): models saved before the field existed load and run unchanged
+    tau_f: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)
 
     def threshold_scale(self, x, dt, hysteresis):
         s = hysteresis.normalise(x)
-        rate = jnp.abs(jnp.diff(s, prepend=s[:1])) / dt * RATE_TIME
-        return 1.0 + self.c * rate
+        rate = jnp.diff(s, prepend=s[:1]) / dt * RATE_TIME
+        # a = 0 passes the rate through unfiltered (tau_f = 0), without dividing by zero
+        on = self.tau_f > 0
+        a = jnp.where(on, jnp.exp(-dt / jnp.where(on, self.tau_f, 1.0)), 0.0)
+
+        def step(z, rk):
+            z = a * z + (1.0 - a) * rk
+            return z, z
+
+        _, rate_f = jax.lax.scan(step, jnp.zeros_like(rate[0]), rate)
+        return 1.0 + self.c * jnp.abs(rate_f)
+
+    @classmethod
+    def tau_f_bounds(cls, dt, duration):
+        """Fitting range of ``tau_f`` (s): a quarter sample (unfiltered in effect) to ``TAU_F_MAX`` or a tenth of the record."""
+        lo = 0.25 * float(dt)
+        return lo, max(min(cls.TAU_F_MAX, 0.1 * float(duration)), 8.0 * lo)
 
     @classmethod
     def nonlinear(cls, ctx):
-        return (Nonlinear("c", Log(), 0.5),)
+        return (Nonlinear("c", Log(), 0.5), Nonlinear("tau_f", LogBox(*cls.tau_f_bounds(ctx["dt"], ctx["duration"])), 0.5))
 
     @classmethod
     def grid(cls, ctx):
-        return [cls(c=_a(c)) for c in (0.1, 0.5, 2.0)]
+        lo, hi = cls.tau_f_bounds(ctx["dt"], ctx["duration"])
+        # kept a factor 2 inside the bounds, where the logistic map of `LogBox` is not flat
+        taus = dict.fromkeys(float(np.clip(t, 2.0 * lo, 0.5 * hi)) for t in (0.0, 1.0, 5.0))
+        return [cls(c=_a(c), tau_f=_a(t)) for c in (0.1, 0.5, 2.0) for t in taus]
 
     @classmethod
     def probes(cls, ctx):
-        return [cls(c=_a(0.05))]
+        lo, _ = cls.tau_f_bounds(ctx["dt"], ctx["duration"])
+        return [cls(c=_a(0.05), tau_f=_a(2.0 * lo))]
 
     @classmethod
     def synthesise(cls, rng, ctx):
@@ -387,21 +440,32 @@ class Creep(AbstractFeatureEffect):
         "seconds to minutes): y = (1 - g) H + g L[H]. After a step the output keeps relaxing while the input is held: "
         "towards the step (g > 0, creep) or back from an overshoot (g < 0, recovery). A relaxation is bounded: |g| <= 1 "
         "(at most the whole step creeps or overshoots) and tau lies between a few samples and the record length (a longer "
-        "tau cannot be told from a ramp, which is ambient_drift); the diagnosis fits within these bounds."
+        "tau cannot be told from a ramp, which is ambient_drift); the diagnosis fits within these bounds. The creep state at "
+        "t = 0 is part of the model: a record that starts soon after the actuator moved has not finished creeping, so L "
+        "starts at (1 - unsettled) H(0) (unsettled = 0: settled; 1: no creep yet), |unsettled| <= U_MAX."
     )
     parameters: ClassVar[dict] = {
         "g": "fraction of the output that creeps, signed, |g| <= G_MAX = 1",
         "tau": "creep time constant in seconds, fitted within [TAU_MIN_SAMPLES dt, record length]",
+        "unsettled": "fraction of the settled creep state still missing at t = 0 (0: settled), |unsettled| <= U_MAX",
     }
     synthetic: ClassVar[str] = "g ~ +-U(0.08, 0.2) (creep or recovery from an overshoot), tau ~ U(100, 400) s"
     #: Bounds used when fitting (models saved with values outside them still load and run unchanged).
     G_MAX: ClassVar[float] = 1.0
     TAU_MIN_SAMPLES: ClassVar[float] = 2.0
+    #: Bound of ``unsettled``: the state at t = 0 lies between 1.5 H(0) below and above its settled value.
+    U_MAX: ClassVar[float] = 1.5
     g: jnp.ndarray
     tau: jnp.ndarray = positive()
+    # default 0 (settled at t = 0): models saved before the field existed load and run unchanged
+    unsettled: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)
 
     def filter_features(self, F, dt):
-        return F + self.g * (_lowpass(F, dt, self.tau) - F)
+        # The offset column (all ones; any column equal to 1 throughout is collinear with it) is the sensor zero, not a
+        # strain: it does not creep, whatever the initial state.
+        offset = jnp.all(F == 1.0, axis=0)
+        z0 = jnp.where(offset, F[0], (1.0 - self.unsettled) * F[0])
+        return F + self.g * (_lowpass(F, dt, self.tau, z0) - F)
 
     @classmethod
     def tau_bounds(cls, dt, duration):
@@ -426,11 +490,13 @@ class Creep(AbstractFeatureEffect):
         return (
             Nonlinear("g", Tanh(cls.G_MAX), 0.05),
             Nonlinear("tau", LogBox(*cls.tau_bounds(ctx["dt"], ctx["duration"])), 0.5),
+            Nonlinear("unsettled", Tanh(cls.U_MAX), 0.3),
         )
 
     @classmethod
     def grid(cls, ctx):
-        return [cls(g=_a(g), tau=_a(t)) for g in (-0.1, 0.1, 0.3) for t in cls.taus(ctx)]
+        # settled, and a record that starts before any creep (the start transient of a warm record)
+        return [cls(g=_a(g), tau=_a(t), unsettled=_a(u0)) for u0 in (0.0, 1.0) for g in (-0.1, 0.1, 0.3) for t in cls.taus(ctx)]
 
     @classmethod
     def probes(cls, ctx):

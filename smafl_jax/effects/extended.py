@@ -26,7 +26,7 @@ and the extended thermal model is
     dq/dt = k1 rho(dir) [ U^2 h(q) - q c(q) + q_amb(t) ]
 
 with ``h = 1 / (1 + beta q / q_ref)`` (resistance_tc), ``c = 1 + gamma q / q_ref``
-(nonlinear_cooling), ``rho = exp(log_ratio)`` while cooling (asymmetric_cooling)
+(nonlinear_cooling), ``rho = exp(log_ratio) / (1 + latent band(q / q_ref))`` while cooling (asymmetric_cooling)
 and ``q_amb = drift q_ref t / 1000 s`` (ambient_drift).  It is integrated with
 the exact first-order hold of the base model, the nonlinear coefficients frozen
 at the previous state (a locally linear step that stays stable for any dt and
@@ -171,7 +171,7 @@ class ExtendedModel(eqx.Module):
             target = heat / c + qa
             rate = k1 * c
             for e in effs:
-                rate = e.rate(rate, target, q)
+                rate = e.rate(rate, target, q, qref)
             a = jnp.exp(-rate * dt)
             q = a * q + (1.0 - a) * target
             return q, q

@@ -238,7 +238,8 @@ class AbstractThermalEffect(AbstractEffect):
         """Multiplicative loss coefficient ``c(q)`` (None: 1)."""
         return None
 
-    def rate(self, rate, target, q):
+    def rate(self, rate, target, q, q_ref):
+        """Thermal rate of this step (``target`` the state it relaxes to; default unchanged)."""
         return rate
 
     def ambient(self, t, q_ref):
