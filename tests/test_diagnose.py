@@ -228,26 +228,6 @@ def test_creep_reference_and_json(truth, drives, tmp_path):
         assert float(sj.load_model(tmp_path / "creep_u.json").get("creep").unsettled) == u0
 
 
-def test_rate_dependence_filtered_rate_matches_a_numpy_loop(truth, drives):
-    """rate_dependence's threshold scale = 1 + c |r_f| with r_f the rate of the normalised hysteresis input through a
-    first-order filter (numpy loop); tau_f = 0 is the unfiltered rate (models saved before the filter)."""
-    u = _u(drives)
-    dt = 0.5
-    h = truth.hysteresis
-    x = ExtendedModel(truth, ()).hysteresis_input(jnp.asarray(u), dt)
-    s = np.asarray(h.normalise(x))
-    rate = np.diff(s, prepend=s[:1]) / dt * 100.0
-    for c, tau_f in ((0.4, 0.0), (1.3, 3.0)):
-        a = 0.0 if tau_f == 0 else np.exp(-dt / tau_f)
-        z, ref = 0.0, np.empty_like(rate)
-        for k, r in enumerate(rate):
-            z = a * z + (1 - a) * r
-            ref[k] = 1.0 + c * abs(z)
-        got = RateDependence(c=jnp.asarray(c), tau_f=jnp.asarray(tau_f)).threshold_scale(x, jnp.asarray(dt), h)
-        np.testing.assert_allclose(np.asarray(got), ref, rtol=1e-12, atol=1e-12)
-    assert float(RateDependence(c=jnp.asarray(1.0)).tau_f) == 0.0  # the default: unfiltered
-
-
 def test_strain_accumulation_reference_and_json(truth, drives, tmp_path):
     """strain_accumulation = numpy loop: y = H + c D, D accumulated -phi dt / 1000 s, phi the normalised effective
     voltage above its start; monotone D; EUPI base too; JSON round trip (a stale ``rho`` field is refused) and

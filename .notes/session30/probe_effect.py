@@ -14,5 +14,5 @@ print('case', {k: case.get(k) for k in ('drive', 'start', 'variant', 'n', 'effec
 print('base train %.2f held %.2f' % (res['base']['train_rmse'] / noise, res['base']['heldout_rmse'] / noise))
 for c in res['candidates']:
     if c.get('fitted'):
-        print(c['name'], 'train %.2f held %.2f gain %.3f' % (c['train_rmse'] / noise, c['heldout_rmse'] / noise, c['heldout_gain']), c.get('parameters'), c.get('decision'))
+        print(c['name'], 'train %.2f held %.2f gain %.3f' % (c['train_rmse'] / noise, c['heldout_rmse'] / noise, c['heldout_gain']), c.get('parameters'), c.get('decision'), {k: c['fit'].get(k) for k in ('start', 'train_sse_from_profiled_base', 'train_sse_from_refined_base')})
 print('selected', res['selected'])

@@ -373,56 +373,28 @@ class RateDependence(AbstractThresholdEffect):
     name: ClassVar[str] = "rate_dependence"
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
-        "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the "
-        "polymer, rate-dependent phase transformation); the rate is the one the material has felt over the last tau_f "
-        "seconds (a first-order filter; tau_f = 0: the instantaneous rate)."
+        "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the polymer, rate-dependent phase transformation)."
     )
-    parameters: ClassVar[dict] = {
-        "c": "threshold widening per unit normalised rate (per 100 s) (> 0)",
-        "tau_f": "time constant (s) of the rate's first-order filter, >= 0 (0: unfiltered)",
-    }
-    synthetic: ClassVar[str] = "c ~ U(0.5, 1.5), tau_f = 0"
-    #: Upper bound of the fitted ``tau_f`` (s): slower than this the widening is a slow drift, not a rate effect.
-    TAU_F_MAX: ClassVar[float] = 30.0
+    parameters: ClassVar[dict] = {"c": "threshold widening per unit normalised rate (per 100 s) (> 0)"}
+    synthetic: ClassVar[str] = "c ~ U(0.5, 1.5)"
     c: jnp.ndarray = positive()
-    # default 0 (unfiltered): models saved before the field existed load and run unchanged
-    tau_f: jnp.ndarray = eqx.field(default=0.0, converter=as_float_array)
 
     def threshold_scale(self, x, dt, hysteresis):
         s = hysteresis.normalise(x)
-        rate = jnp.diff(s, prepend=s[:1]) / dt * RATE_TIME
-        # a = 0 passes the rate through unfiltered (tau_f = 0), without dividing by zero
-        on = self.tau_f > 0
-        a = jnp.where(on, jnp.exp(-dt / jnp.where(on, self.tau_f, 1.0)), 0.0)
-
-        def step(z, rk):
-            z = a * z + (1.0 - a) * rk
-            return z, z
-
-        _, rate_f = jax.lax.scan(step, jnp.zeros_like(rate[0]), rate)
-        return 1.0 + self.c * jnp.abs(rate_f)
-
-    @classmethod
-    def tau_f_bounds(cls, dt, duration):
-        """Fitting range of ``tau_f`` (s): a quarter sample (unfiltered in effect) to ``TAU_F_MAX`` or a tenth of the record."""
-        lo = 0.25 * float(dt)
-        return lo, max(min(cls.TAU_F_MAX, 0.1 * float(duration)), 8.0 * lo)
+        rate = jnp.abs(jnp.diff(s, prepend=s[:1])) / dt * RATE_TIME
+        return 1.0 + self.c * rate
 
     @classmethod
     def nonlinear(cls, ctx):
-        return (Nonlinear("c", Log(), 0.5), Nonlinear("tau_f", LogBox(*cls.tau_f_bounds(ctx["dt"], ctx["duration"])), 0.5))
+        return (Nonlinear("c", Log(), 0.5),)
 
     @classmethod
     def grid(cls, ctx):
-        lo, hi = cls.tau_f_bounds(ctx["dt"], ctx["duration"])
-        # kept a factor 2 inside the bounds, where the logistic map of `LogBox` is not flat
-        taus = dict.fromkeys(float(np.clip(t, 2.0 * lo, 0.5 * hi)) for t in (0.0, 1.0, 5.0))
-        return [cls(c=_a(c), tau_f=_a(t)) for c in (0.1, 0.5, 2.0) for t in taus]
+        return [cls(c=_a(c)) for c in (0.1, 0.5, 2.0)]
 
     @classmethod
     def probes(cls, ctx):
-        lo, _ = cls.tau_f_bounds(ctx["dt"], ctx["duration"])
-        return [cls(c=_a(0.05), tau_f=_a(2.0 * lo))]
+        return [cls(c=_a(0.05))]
 
     @classmethod
     def synthesise(cls, rng, ctx):
