@@ -178,9 +178,10 @@ def fit_record(record, *, model="auto", progress=False, **options):
     )
 
 
-def _median_doc(record, runs, kept, final, doc, extra, progress):
+def _median_doc(record, runs, kept, final, doc, extra, progress, refitted=None):
     """fit.json ``median``: the sample-by-sample median of every compared class (`MedianOfModels`), each class refitted
     on the whole record, with the median of the split models scored on the same training / validation samples.
+    ``kept``: the index of the kept run (refitted as ``final``); ``refitted``: {run index: model} refitted already.
 
     Why: on 60 independent records the median of the three classes held out 0.88x the geometric-mean error of the
     class the validation block keeps (experiments/results/random_levels_20min_session28.md; worse on issue 18's matrix).
@@ -188,11 +189,12 @@ def _median_doc(record, runs, kept, final, doc, extra, progress):
     from ..models._median import MedianOfModels
 
     train, val, _ = extra
+    refitted = {**(refitted or {}), kept: final}  # `finish()` runs once per candidate
     finals = []
-    for name, c, _ in runs:
-        if c is not kept:  # the kept class is refitted already
+    for i, (name, c, _) in enumerate(runs):
+        if i not in refitted:
             say(f"median: refitting {name} on the whole record", progress)
-        finals.append(final if c is kept else c.finish()[0])
+        finals.append(refitted[i] if i in refitted else c.finish()[0])
     split_y = np.median(np.stack([np.asarray(simulate(c.model, record.u, record.dt)) for _, c, _ in runs]), axis=0)
     median = MedianOfModels(tuple(finals))
     y_all = np.asarray(simulate(median, record.u, record.dt))
@@ -277,7 +279,9 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
                 )
                 futures += _submit_longest_first(pool, job, HYSTERESIS, first=len(candidates))
                 candidates = (*candidates, *HYSTERESIS)
+        early = _finish_best_when_idle(pool, threads, futures, candidates, progress)
         runs = [(name, *f.result()) for name, f in zip(candidates, futures)]
+        early = {i: f.result() for i, f in early.items()}  # inside the block: a refit started early ends before it is left
     if len(runs) == 1:
         return runs[0][1].finish()
     scored = [r for r in runs if r[1].metrics["validation"] is not None]
@@ -285,7 +289,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         name, kept, _ = runs[0]
         how = f"no {validation} error to compare on: the first candidate is kept"
     else:
-        name, kept, _ = min(scored, key=lambda r: _rmse_or_inf(r[1].metrics["validation"]))
+        name, kept, _ = _best(scored)
         how = f"lowest {validation} RMSE"
     covered = [c.coverage for _, c, _ in scored]
     uncertain = bool(covered) and all(v is not None and v < COVERAGE_WARN for v in covered)
@@ -301,15 +305,20 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         )
     if len(runs) > 1:
         say(f"model auto: {name} kept ({how})", progress)
-    t0 = time.perf_counter()
-    final, doc, extra = kept.finish()
+    k = next(i for i, r in enumerate(runs) if r[1] is kept)
+    if k in early:  # refitted on a thread that went idle while the last candidates ran (`_finish_best_when_idle`)
+        (final, doc, extra), fin_sec = early[k]
+    else:
+        t0 = time.perf_counter()
+        final, doc, extra = kept.finish()
+        fin_sec = time.perf_counter() - t0
     table = [
         {
             "structure": n,
             "validation": c.metrics["validation"] and {k: c.metrics["validation"][k] for k in ("rmse", "e_r_percent")},
             "train_rmse": c.metrics["train"]["rmse"],
             "validation_coverage": c.coverage,
-            "seconds": sec + (time.perf_counter() - t0 if c is kept else 0.0),
+            "seconds": sec + (fin_sec if c is kept else 0.0),
         }
         for n, c, sec in runs
     ]
@@ -322,7 +331,8 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     }
     doc["settings"] = {**doc["settings"], "model": "auto", "structure_choice": choice}
     if median and len(runs) > 1:
-        doc["median"] = _median_doc(record, runs, kept, final, doc, extra, progress)
+        refitted = {i: r[0][0] for i, r in early.items()}
+        doc["median"] = _median_doc(record, runs, k, final, doc, extra, progress, refitted)
     doc["notes"] = [
         f"model auto -> {name}: {why}; "
         + ", ".join(
@@ -336,6 +346,47 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         *(n for n in doc["notes"] if not n.startswith(("model auto -> ", STATIC_ON_DRIVE))),
     ]
     return final, doc, extra
+
+
+def _best(runs):
+    """The run ``(name, candidate, seconds)`` with the lowest validation RMSE (the first of equals)."""
+    return min(runs, key=lambda r: _rmse_or_inf(r[1].metrics["validation"]))
+
+
+def _finish_best_when_idle(pool, threads, futures, names, progress):
+    """Once a thread goes idle while candidates are still being fitted (two threads, three candidates: the last one
+    runs alone), start there the whole-record refit (``finish()``) of the best candidate fitted so far; returns
+    ``{index: future of ((model, doc, extra), seconds)}`` (empty when nothing was started).
+
+    `choose_structure` uses that refit when the candidate stays the best (it depends on the candidate alone, so the
+    result is the one a refit after the choice makes), else it was work on a core that had none.  Measured on the
+    benchmark record (2 cores): the Preisach candidate (about 5 s) ran alone after the other two, then the kept class's
+    refit (about 5 s) alone."""
+    if pool.pool is None:
+        return {}
+    waiting = set(futures)
+    while waiting:
+        _, waiting = concurrent.futures.wait(waiting, return_when=concurrent.futures.FIRST_COMPLETED)
+        if not waiting or len(waiting) >= threads:  # every thread still has a candidate to fit
+            continue
+        done = [(names[i], f.result()[0], i) for i, f in enumerate(futures) if f.done()]
+        scored = [r for r in done if r[1].metrics["validation"] is not None]
+        if not scored:
+            continue
+        name, best, i = _best(scored)
+
+        def refit():
+            with tagged(name):
+                say(
+                    f"best so far: refitting {name} on the whole record now, on an idle thread (used if it stays the best)",
+                    progress,
+                )
+                t0 = time.perf_counter()
+                out = best.finish()
+            return out, time.perf_counter() - t0
+
+        return {i: pool.submit(refit)}
+    return {}
 
 
 def _submit_longest_first(pool, job, names, first=0):
