@@ -48,6 +48,7 @@ def run_one(name, seed, folder, n_null, fpr):
         "case": case,
         "selected_new": res["selected"],
         "ambiguous_new": res["ambiguous"],
+        "unspecific_new": res.get("unspecific", []),
         "selected_old": res["selection"]["legacy_selected"],
         "base_train_rmse": res["base"]["train_rmse"],
         "base_heldout_rmse": res["base"]["heldout_rmse"],

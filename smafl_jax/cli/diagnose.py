@@ -120,6 +120,8 @@ def run(args):
     sel = ", ".join(diag.selected) or "none"
     if diag.ambiguous:
         sel += f" (ambiguous with {', '.join(n for n in diag.ambiguous if n not in diag.selected)})"
+    if diag.unspecific:
+        sel += f" (unrelated effects explain the residual alike: {', '.join(diag.unspecific)})"
     noise = diag.report.get("noise") or {}
     in_noise = (
         f", {noise['base_heldout_ratio']:.3g}x -> {noise['extended_heldout_ratio']:.3g}x the output noise"

@@ -96,6 +96,12 @@ class Diagnosis:
         return self.report.get("ambiguous", [])
 
     @property
+    def unspecific(self) -> list[str]:
+        """Effects that each passed the calibrated test but explain the residual alike without sharing a lookalike
+        group (nothing selected then: the residual is a misfit of the base model)."""
+        return self.report.get("unspecific", [])
+
+    @property
     def warnings(self) -> list[str]:
         """Warnings about the request (e.g. a requested effect that does not apply to this record)."""
         return self.report.get("warnings", [])

@@ -96,6 +96,7 @@ class Delay(AbstractInputEffect):
     """Transport delay of the drive (dead time of the driver, sensor or heat conduction)."""
 
     name: ClassVar[str] = "delay"
+    lookalikes: ClassVar[tuple[str, ...]] = ("timing",)
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "The output responds to the input tau seconds late (amplifier/DAQ latency, heat conduction from the SMA wire into the polymer, sensor filtering)."
@@ -129,6 +130,7 @@ class SensorLag(AbstractInputEffect):
     """First-order lag between the measured input and what the hysteresis sees (smoothing, unlike `Delay`)."""
 
     name: ClassVar[str] = "sensor_lag"
+    lookalikes: ClassVar[tuple[str, ...]] = ("timing",)
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "The transforming material follows the measured input through a first-order lag: heat conduction from the bath "
@@ -167,6 +169,7 @@ class AmbientDrift(AbstractThermalEffect):
     """Slow drift of the ambient (thermal equilibrium) during the record."""
 
     name: ClassVar[str] = "ambient_drift"
+    lookalikes: ClassVar[tuple[str, ...]] = ("thermal", "slow")
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "The ambient temperature (or the rest temperature of the actuator) drifts linearly during the record, shifting the thermal state the hysteresis sees."
@@ -208,6 +211,7 @@ class ResistanceTC(AbstractThermalEffect):
     """Temperature coefficient of the wire resistance: Joule heating falls as the wire warms."""
 
     name: ClassVar[str] = "resistance_tc"
+    lookalikes: ClassVar[tuple[str, ...]] = ("thermal",)
     needs: ClassVar[tuple] = ("thermal",)
     physics: ClassVar[str] = (
         "R = R0 (1 + beta q / q_ref): at constant voltage the heating power U^2/R falls as the wire warms, so hot states are reached more slowly and saturate lower."
@@ -241,6 +245,7 @@ class AsymmetricCooling(AbstractThermalEffect):
     """Different thermal time constants for heating and cooling."""
 
     name: ClassVar[str] = "asymmetric_cooling"
+    lookalikes: ClassVar[tuple[str, ...]] = ("thermal",)
     needs: ClassVar[tuple] = ("thermal",)
     physics: ClassVar[str] = (
         "Cooling (heat loss to a still environment, latent heat of the reverse transformation) runs at a different rate than "
@@ -297,6 +302,7 @@ class NonlinearCooling(AbstractThermalEffect):
     """Convective/radiative cooling that grows faster than linearly with temperature."""
 
     name: ClassVar[str] = "nonlinear_cooling"
+    lookalikes: ClassVar[tuple[str, ...]] = ("thermal",)
     needs: ClassVar[tuple] = ("thermal",)
     physics: ClassVar[str] = (
         "Heat loss k1 q (1 + gamma q / q_ref): natural convection and radiation make hot states cool faster (and saturate lower) than Newton's law."
@@ -330,6 +336,7 @@ class InputWarp(AbstractWarpEffect):
     """Transformation warp: the hysteresis acts on a sigmoidal (CDF-like) function of the input."""
 
     name: ClassVar[str] = "input_warp"
+    lookalikes: ClassVar[tuple[str, ...]] = ("static_map",)
     needs: ClassVar[tuple] = ()
     physics: ClassVar[str] = (
         "The martensite/austenite transformation of an SMA runs over a narrow temperature band, and the quasi-static "
@@ -371,6 +378,7 @@ class RateDependence(AbstractThresholdEffect):
     """Rate-dependent hysteresis: loop width grows with the input rate."""
 
     name: ClassVar[str] = "rate_dependence"
+    lookalikes: ClassVar[tuple[str, ...]] = ("timing",)
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "Play thresholds widen with the rate of the hysteresis input, r(k) = r (1 + c |ds/dt| 100 s) (viscous friction in the polymer, rate-dependent phase transformation)."
@@ -406,6 +414,7 @@ class Creep(AbstractFeatureEffect):
     """Slow viscoelastic relaxation (creep) of the polymer; a bounded fraction of the output relaxes."""
 
     name: ClassVar[str] = "creep"
+    lookalikes: ClassVar[tuple[str, ...]] = ("slow", "timing")  # with g = 1 creep is an output lag
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "A fraction g of the output follows the hysteresis output H through a slow first-order lag L (time constant tau, "
@@ -484,6 +493,7 @@ class OutputSaturation(AbstractOutputEffect):
     """Output saturation: steep sigmoidal SMA transformation between two stroke limits."""
 
     name: ClassVar[str] = "output_saturation"
+    lookalikes: ClassVar[tuple[str, ...]] = ("static_map",)
     needs: ClassVar[tuple] = ()
     physics: ClassVar[str] = (
         "The stroke is bounded by the completed martensite/austenite transformation: y = m + w tanh((H - m) / w), a monotone sigmoid between m - w and m + w that tends to the identity as w grows."
@@ -534,6 +544,7 @@ class LoadDependence(AbstractOutputEffect):
     """Stroke and offset change with the mechanical load (needs a load column)."""
 
     name: ClassVar[str] = "load_dependence"
+    lookalikes: ClassVar[tuple[str, ...]] = ("static_map",)
     needs: ClassVar[tuple] = ("load",)
     physics: ClassVar[str] = (
         "A heavier load stretches the actuator (offset b) and changes the recoverable stroke (gain a): y = H (1 + a l) + b l with l = (L - load_ref) / load_scale."
@@ -607,6 +618,7 @@ class StrainAccumulation(AbstractLinearEffect):
     """Strain that accumulates while the wire is driven (hot/transformed) and stays (permanent, one parameter ``c``)."""
 
     name: ClassVar[str] = "strain_accumulation"
+    lookalikes: ClassVar[tuple[str, ...]] = ("slow",)
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "While the wire is hot (transformed, carrying the bias load) strain accumulates monotonically and stays after "

@@ -30,6 +30,7 @@ class OutputLag(AbstractFeatureEffect):
     """First-order lag between the actuator's output and its measurement (a filtered displacement sensor)."""
 
     name: ClassVar[str] = "output_lag"
+    lookalikes: ClassVar[tuple[str, ...]] = ("timing",)
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "The displacement (or force) sensor reports the actuator's output through a first-order lag of time constant "

@@ -172,6 +172,11 @@ class AbstractEffect(eqx.Module):
     linear_in_weights: ClassVar[bool] = True
     #: The effect scales the play thresholds per sample: the hysteresis must have ``scalable_thresholds``.
     scales_thresholds: ClassVar[bool] = False
+    #: Groups of effects whose residual signatures one record often cannot tell apart (issue 13 names them: the thermal
+    #: family; creep and slow drift; delay, lag and rate dependence; static maps of the input or output).  When effects
+    #: that explain a residual equally well share no group, the diagnosis names none of them (`diagnosis.lookalike_groups`):
+    #: a residual that unrelated effects explain alike is structure the base model misses, not the signature of one.
+    lookalikes: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     @abc.abstractmethod

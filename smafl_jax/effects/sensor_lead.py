@@ -25,6 +25,7 @@ class SensorLead(AbstractInputEffect):
     """Lead-lag pre-stage ``(1 + lead s) / (1 + tau s)``: undoes a slow input sensor (``lead > tau``)."""
 
     name: ClassVar[str] = "sensor_lead"
+    lookalikes: ClassVar[tuple[str, ...]] = ("timing",)
     needs: ClassVar[tuple] = ("time",)
     physics: ClassVar[str] = (
         "The input sensor responds more slowly than the material (a thermocouple in a water bath settles in 5-10 s while "
