@@ -620,6 +620,10 @@ def test_folds_gate_floors_a_diverged_fold_but_keeps_consistency():
     assert not folds_gate([-0.1, 0.5, -0.2])[0]  # two folds worse
     assert folds_gate([0.1, 0.2, 0.3]) == (True, pytest.approx(0.2))
     assert folds_gate([]) == (False, 0.0)
+    # the folds must show the gain asked of the main split on average (session 31: clean records passed at +2.7 %)
+    assert folds_gate([-0.132, 0.081, 0.133], 0.05) == (False, pytest.approx((-0.132 + 0.081 + 0.133) / 3))
+    assert folds_gate([-0.132, 0.081, 0.133])[0]  # without a minimum only the sign counts
+    assert folds_gate([0.04, 0.06, 0.08], 0.05)[0]
 
 
 def _eupi_accumulation_record(truth, drives, c, seed, noise=0.003):

@@ -971,15 +971,21 @@ def _held(model, split):
 FOLD_GAIN_FLOOR = -1.0
 
 
-def folds_gate(gains) -> tuple[bool, float]:
-    """``(passed, mean)``: the gain is positive in all folds or all but one, and the one exception does not outweigh
-    the others (the mean of the gains, each floored at `FOLD_GAIN_FLOOR`, is positive)."""
+def folds_gate(gains, min_mean: float = 0.0) -> tuple[bool, float]:
+    """``(passed, mean)``: the gain is positive in all folds or all but one, and the folds together show the gain asked
+    of the main split (the mean of the gains, each floored at `FOLD_GAIN_FLOOR`, at least ``min_mean``; the diagnosis
+    passes its ``min_gain``, 5 %).
+
+    Why the mean must reach ``min_gain`` and not just 0 (session 31): on clean independent records a timing effect with
+    a 6-12 % gain on the main split and fold gains like -0.13 / +0.08 / +0.13 (mean +2.7 %) passed; over the 177 stored
+    blind diagnoses, fold means of 2-4 % were three clean records' false selections, one wrong name and one true name
+    (resistance_tc seed 3, ambiguous with nonlinear_cooling, 7 % on the split, 3.4 % over the folds)."""
     gains = [float(g) for g in gains]
     if not gains:
         return False, 0.0
     mean = float(np.mean(np.maximum(gains, FOLD_GAIN_FLOOR)))
     n_pos = sum(g > 0 for g in gains)
-    return bool(len(gains) >= 2 and n_pos >= len(gains) - 1 and mean > 0), mean
+    return bool(len(gains) >= 2 and n_pos >= len(gains) - 1 and mean > 0 and mean >= min_mean), mean
 
 
 def calibration_gates(
@@ -1010,7 +1016,7 @@ def calibration_gates(
     2. ``max_error``: held-out max |error| (the numerator of e_r) not raised;
     3. ``folds``: on each of K contiguous blocks held out in turn (branch records: the three branch residues),
        both models refitted (linear gains re-profiled), the gain is positive in all folds or all but one, and the
-       mean fold gain (each fold's gain floored at ``FOLD_GAIN_FLOOR``) is positive;
+       mean fold gain (each fold's gain floored at ``FOLD_GAIN_FLOOR``) is at least ``min_gain`` (`folds_gate`);
     4. ``null``: the gain exceeds the (1 - fpr) quantile of the gains the same effect reaches on ``n_null``
        null records simulated from ``current`` with its own residual structure (`null_records`), each refitted
        exactly like the real record (current: warm start; effect: its grid of starts); the quantile is a normal
@@ -1060,7 +1066,7 @@ def calibration_gates(
     out["folds"] = folds
     out["folds_positive"] = f"{n_pos}/{len(folds)}"
     out["mean_fold_gain_raw"] = float(np.mean(gains)) if folds else 0.0
-    out["gates"]["folds"], mean_fold = folds_gate(gains)
+    out["gates"]["folds"], mean_fold = folds_gate(gains, min_gain)
     out["mean_fold_gain"] = mean_fold
     out["fold_gain_floor"] = FOLD_GAIN_FLOOR
     _log(f"  {name}: fold gains {[round(f['gain'], 3) for f in folds]} ({time.time() - t0:.1f} s)", verbose)
@@ -1235,8 +1241,8 @@ def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
         "rule": "calibrated",
         "description": (
             f"accepted when (1) the held-out RMSE gain >= {100 * min_gain:g} %, (2) the held-out max |error| is not "
-            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds (and on average, each fold floored at "
-            f"{100 * FOLD_GAIN_FLOOR:+.0f} %) "
+            f"raised, (3) the gain is positive in all or all but one of the cross-validation folds and at least "
+            f"{100 * min_gain:g} % on average (each fold floored at {100 * FOLD_GAIN_FLOOR:+.0f} %) "
             f"({cal['n_folds']} contiguous time blocks, or the 3 branch residues), both models refitted per fold, and "
             f"(4) the gain exceeds the (1 - fpr) quantile (normal approximation) and the maximum of the gains the same "
             f"effect reaches on {cal['n_null']} null records (the fitted model without it plus an AR fit of its own "
