@@ -127,8 +127,9 @@ def test_model_auto_refits_only_the_kept_structure(tmp_path, monkeypatch):
     model, doc, _ = fit_record(rec, **pinned)
     choice = doc["settings"]["structure_choice"]
     assert len(choice["candidates"]) >= 2 and doc["metrics"]["whole_record"] is not None
-    # every candidate was fitted on the split, only the kept one on the whole record
-    assert refits == [choice["chosen"]], (refits, choice["chosen"])
+    # every candidate was fitted on the split; the kept one is refitted on the whole record once, and at most one other
+    # (the best so far, refitted early on a thread that went idle: `_finish_best_when_idle`, session 31)
+    assert refits.count(choice["chosen"]) == 1 and len(refits) <= 2, (refits, choice["chosen"])
     # and the saved model is the one a fit of that structure alone saves
     alone, doc1, _ = fit_record(rec, model=choice["chosen"], thresholds=True, tilts=True, **pinned)
     assert sj.model_to_dict(model) == sj.model_to_dict(alone)
