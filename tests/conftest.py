@@ -62,3 +62,23 @@ def short_indep_record(tmp_path_factory):
     path = tmp_path_factory.mktemp("indep") / "rec.csv"
     indep_plant.write_csv(path, r)
     return sj.load_record(path)
+
+
+@pytest.fixture(scope="module")
+def stand_in_record(tmp_path_factory):
+    """A short voltage-driven record of the direct-input plant (Preisach, steps), loaded as a user would: the record
+    behind tests that fit stand-in candidates through `choose_structure`."""
+    import sys
+
+    import numpy as np
+
+    import smafl_jax as sj
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import indep_direct
+
+    r = indep_direct.make_record(6, "preisach", "steps", n=400, dt=0.05, u_lo=0.2, u_span=6.0)
+    path = tmp_path_factory.mktemp("stand_in") / "v.csv"
+    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
+               comments="", fmt="%.9g")  # fmt: skip
+    return sj.load_record(path)

@@ -3,26 +3,14 @@ validation samples lie on branches its training part visits (`Candidate.coverage
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-import numpy as np
 import pytest
 
-import smafl_jax as sj
 from smafl_jax.report import _report_fit  # private: choose_structure with stand-in candidates
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import indep_direct
 
 
 @pytest.fixture(scope="module")
-def record(tmp_path_factory):
-    r = indep_direct.make_record(6, "preisach", "steps", n=400, dt=0.05, u_lo=0.2, u_span=6.0)
-    path = tmp_path_factory.mktemp("cov") / "v.csv"
-    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
-               comments="", fmt="%.9g")  # fmt: skip
-    return sj.load_record(path)
+def record(stand_in_record):
+    return stand_in_record
 
 
 def _candidates(record, coverage):

@@ -4,27 +4,17 @@ runs at most once, and a candidate that overtakes at the end is refitted itself.
 
 from __future__ import annotations
 
-import sys
 import threading
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-import smafl_jax as sj
 from smafl_jax.report import _report_fit  # private: choose_structure with stand-in candidates
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import indep_direct
 
 
 @pytest.fixture(scope="module")
-def record(tmp_path_factory):
-    r = indep_direct.make_record(6, "preisach", "steps", n=400, dt=0.05, u_lo=0.2, u_span=6.0)
-    path = tmp_path_factory.mktemp("early") / "v.csv"
-    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
-               comments="", fmt="%.9g")  # fmt: skip
-    return sj.load_record(path)
+def record(stand_in_record):
+    return stand_in_record
 
 
 def _stand_ins(record, rmse):

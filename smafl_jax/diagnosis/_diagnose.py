@@ -1262,14 +1262,14 @@ def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
     }
 
 
-def _decisions(candidates, selected, ambiguous, rule, unspecific=()):
+def _decisions(candidates, selected, ambiguous, rule, unspecific=(), tolerance=CALIBRATED_DEFAULTS["ambiguity"]):
     """One plain decision per candidate, so that a report never lists several 'accepted' beside one selected."""
     for c in candidates:
         n = c["name"]
         if n in unspecific:
             others = ", ".join(x for x in unspecific if x != n)
             c["decision"] = (
-                f"passes; not selected: {others} explain the residual as well (within 10 % held-out RMSE) and share no "
+                f"passes; not selected: {others} explain the residual as well (within {100 * tolerance:g} % held-out RMSE) and share no "
                 "lookalike group with it: structure the base model misses, not the signature of one effect"
             )
         elif n in selected:
@@ -1496,11 +1496,11 @@ def diagnose(
             verbose,
             sort=True,
         )[0]
-    _decisions(candidates, selected, ambiguous, rule, unspecific)
+    _decisions(candidates, selected, ambiguous, rule, unspecific, cal["ambiguity"])
     if unspecific:
         warnings.append(
             f"nothing selected although {', '.join(unspecific)} each pass the calibrated test: they explain the residual "
-            "alike (within 10 % held-out RMSE) and share no lookalike group, so the residual is structure the base model "
+            f"alike (within {100 * cal['ambiguity']:g} % held-out RMSE) and share no lookalike group, so the residual is structure the base model "
             "misses rather than the signature of one of them (diagnosis.json 'unspecific'; the unexplained report names "
             "its strongest correlate)"
         )
