@@ -226,10 +226,20 @@ def solve_gram(G, h, bb: float, nonneg=None, *, jitter: float = 1e-12) -> Linear
     s = np.maximum(np.sqrt(np.maximum(np.diag(G), 0.0)), SCALE_FLOOR)
     Gs = G / np.outer(s, s)
     hs = h / s
+    floor = jitter * max(float(np.trace(Gs)) / p, 1e-300)
     Gj = Gs.copy()
-    Gj[np.diag_indices_from(Gj)] += jitter * max(float(np.trace(Gs)) / p, 1e-300)
-    R = scipy.linalg.cholesky(Gj, lower=False)
-    c = scipy.linalg.solve_triangular(R, hs, trans="T")
+    Gj[np.diag_indices_from(Gj)] += floor
+    try:
+        R = scipy.linalg.cholesky(Gj, lower=False)
+        c = scipy.linalg.solve_triangular(R, hs, trans="T")
+    except np.linalg.LinAlgError:
+        # Rounding made G indefinite beyond the jitter (columns equal up to rounding, e.g. two operators given the
+        # same start, accumulated over a few hundred thousand samples): a square root from the eigen-decomposition
+        # with the eigenvalues floored, the same quadratic form on the numerically positive part.
+        ev, V = np.linalg.eigh(0.5 * (Gs + Gs.T))
+        ev = np.maximum(ev, floor)
+        R = np.sqrt(ev)[:, None] * V.T
+        c = (V.T @ hs) / np.sqrt(ev)
     z = lsq_linear(R, c, bounds=(lb * s, ub * s), method="bvls").x
     x = np.clip(z / s, lb, ub)
     zs = x * s

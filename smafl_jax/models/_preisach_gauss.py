@@ -244,6 +244,7 @@ class GaussianPreisach(AbstractHysteresis):
         rho = self.density()
         width = self.ramp
 
+        @jax.checkpoint
         def step(r, uk):
             lo, hi = _switch_fractions(uk, a, b, width)
             r = jnp.maximum(jnp.minimum(r, hi), lo)
