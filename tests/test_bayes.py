@@ -11,6 +11,7 @@ import textwrap
 from pathlib import Path
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -145,6 +146,27 @@ def test_vectorised_logprob_shapes_single_trace_and_nan_to_minus_inf():
     assert out[0] == -np.inf and np.all(np.isfinite(out[1:]))
     with pytest.raises(ValueError, match="shape"):
         post(thetas[:, :2])
+
+
+def test_walkers_in_batches_give_the_same_log_density_and_predictions(monkeypatch):
+    """Long records evaluate the walkers in sequential batches (`walker_batch`): the memory of one batch, same values."""
+    from smafl_jax.bayes import _bayes  # private: the batching of the jitted log-density and predictions
+
+    assert _bayes.walker_batch(32, 30_000) == 32 and _bayes.walker_batch(32, 90_000) == 11
+    assert _bayes.walker_batch(32, 360_000) == 2 and _bayes.walker_batch(4, 10**9) == 1
+    truth, u, y = _small_cascade_problem(n=60)
+    post = sj.Posterior(truth, (u, y), 0.5, linear="marginalise", gain_scale=3.0, sigma=0.03)
+    rng = np.random.default_rng(1)
+    thetas = jnp.asarray(post.theta0 + 0.01 * rng.standard_normal((5, post.ndim)))
+    keys = jax.random.split(jax.random.PRNGKey(0), 5)
+    whole = _bayes._vmapped_log_prob(post._d, thetas)
+    f0, y0 = _bayes._batch_predict.__wrapped__(post._d, thetas, keys, jnp.asarray(u), jnp.asarray(0.5))
+    monkeypatch.setattr(_bayes, "WALKER_SAMPLES_PER_BATCH", 2 * len(u))  # 2 walkers a batch, the last one padded
+    assert _bayes.walker_batch(5, len(u)) == 2
+    np.testing.assert_allclose(_bayes._vmapped_log_prob(post._d, thetas), whole, rtol=1e-9)  # batched BLAS rounding
+    f1, y1 = _bayes._batch_predict.__wrapped__(post._d, thetas, keys, jnp.asarray(u), jnp.asarray(0.5))
+    np.testing.assert_allclose(f1, f0, rtol=1e-9)
+    np.testing.assert_allclose(y1, y0, rtol=1e-9)
 
 
 def test_priors_from_json_override_and_errors(tmp_path):

@@ -622,8 +622,25 @@ def _fixed_design(density, model):
     return tuple(jnp.asarray(x) for x in (A, y, c, U, np.maximum(lam, 0.0), g))
 
 
+#: Walkers x samples evaluated at once (one vmapped batch) by the log-density: a batch keeps each walker's design
+#: (samples x columns) alive, about 1 kB per sample and walker for an EUPI cascade, so 32 walkers on a 90 000-sample
+#: record peaked at 2.9 GB and a 60-min 100 Hz record would need about 12 GB.  Records up to 31 250 samples keep all 32
+#: walkers in one batch, as before.
+WALKER_SAMPLES_PER_BATCH = 1_000_000
+
+
+def walker_batch(n_walkers: int, n_samples: int) -> int:
+    """Walkers per vmapped batch of the log-density (`WALKER_SAMPLES_PER_BATCH`; at least 1, at most all)."""
+    return max(1, min(int(n_walkers), WALKER_SAMPLES_PER_BATCH // max(int(n_samples), 1)))
+
+
 def _vmapped_log_prob(density, thetas):
-    return jax.vmap(density.log_prob)(thetas)
+    n = sum(int(u.shape[0]) for u, _, _ in density.args)  # static under jit: shapes
+    batch = walker_batch(thetas.shape[0], n)
+    if batch >= thetas.shape[0]:
+        return jax.vmap(density.log_prob)(thetas)
+    # batches in sequence (`lax.map`, the last one padded): the memory of one batch, the same values
+    return jax.lax.map(density.log_prob, thetas, batch_size=batch)
 
 
 # The hot function of sampling (emcee calls it once per step): one trace per density structure and shapes;
@@ -643,7 +660,10 @@ def _batch_physical(density, thetas):
 
 @jax.jit
 def _batch_predict(density, thetas, keys, u, dt):
-    return jax.vmap(lambda t, k: density.predict(t, k, u, dt))(thetas, keys)
+    batch = walker_batch(thetas.shape[0], u.shape[0])
+    if batch >= thetas.shape[0]:
+        return jax.vmap(lambda t, k: density.predict(t, k, u, dt))(thetas, keys)
+    return jax.lax.map(lambda tk: density.predict(tk[0], tk[1], u, dt), (thetas, keys), batch_size=batch)
 
 
 # -- running ------------------------------------------------------------------

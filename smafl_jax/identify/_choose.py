@@ -159,7 +159,7 @@ def auto_structure(record):
     """
     voltage = _is_voltage(record)
     if drives_joule_heating(record):
-        return "cascade", f"input '{record.input_name}' is a drive voltage >= 0: Joule heating -> thermal lag -> EUPI"
+        return "cascade", f"input '{record.input_name}' is a drive voltage >= 0: Joule heating -> thermal lag -> hysteresis"
     if voltage:
         return "eupi", f"input '{record.input_name}' is a voltage but goes below 0; Joule heating needs U >= 0, so static EUPI"
     return "eupi", f"input '{record.input_name}' is not a drive voltage: the hysteresis sees it directly (static EUPI)"
