@@ -186,3 +186,31 @@ def test_loro_verdict_needs_most_records_not_just_the_mean():
     v = loro_sentences([fold("a", 1.0, 2.0), fold("b", 1.0, 2.0), fold("c", 3.0, 2.9)])
     assert all(s.startswith("the model beats") and "2 of 3 records" in s for s in v)
     assert _dominant_fold(folds[:3]) is None
+
+
+def test_start_mismatch_flags_a_record_that_starts_warm_among_cold_ones():
+    """One start rule serves every record of a joint fit: a warm-started record is misfitted over its first time
+    constants (`start_mismatch`); records that start alike are not flagged."""
+    from smafl_jax.identify._multi_record import START_MISMATCH, start_mismatch
+
+    rng = np.random.default_rng(3)
+    n, dt, k1 = 1200, 0.1, 0.1  # 120 s records, tau 10 s
+    hyst = sj.Cascade.from_range(4.0, n_sym=2, n_alpha=1, n_asym=2, poly_order=2).hysteresis
+    hyst = hyst.with_linear_weights(np.array([0.3, 1.0, 0.5, 0.2, 0.1, 0.05, 0.2]))
+
+    def plant(u0):
+        return sj.Cascade(thermal=sj.JouleThermal(k1=k1, k2=0.05, init="given", u0=u0), hysteresis=hyst)
+
+    cold = plant(0.0)
+    t = np.arange(n) * dt
+    recs, yhat = [], []
+    for name, truth in (("a", cold), ("b", cold), ("c", plant(3.5))):
+        u = np.clip(2.0 + 1.5 * np.sin(2 * np.pi * t / 40.0 + rng.uniform(0, 6)), 0.0, None)
+        y = np.asarray(truth.simulate(u, dt)) + 0.002 * rng.standard_normal(n)
+        recs.append(sj.Record.from_arrays(t, u, y, name=name))
+        yhat.append(np.asarray(cold.simulate(u, dt)))
+    rows, note = start_mismatch(recs[:2], yhat[:2], k1, 0.002)
+    assert note is None and [r["record"] for r in rows] == ["a", "b"]
+    assert all(r["start_rmse"] < 1.5 * r["rest_rmse"] for r in rows)
+    rows, note = start_mismatch(recs, yhat, k1, 0.002)
+    assert note.startswith(START_MISMATCH) and " c (first 30 s" in note and " a (" not in note

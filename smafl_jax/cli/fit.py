@@ -281,7 +281,7 @@ def _run_records(args, records, grid):
     """Several records: one joint model, leave-one-record-out validation, outputs like a one-record fit."""
     from .. import prepare_out_dir
     from ..identify._metrics import ABOVE_NOISE
-    from ..identify._multi_record import fit_records, write_records_outputs
+    from ..identify._multi_record import START_MISMATCH, fit_records, write_records_outputs
 
     out = prepare_out_dir(args.out or f"fit_{records[0].name}_and_{len(records) - 1}_more")
     print(
@@ -301,7 +301,7 @@ def _run_records(args, records, grid):
         print("note: --median applies to one record (its validation samples); not written here", file=sys.stderr)
     write_records_outputs(out, records, doc, details, figures=not args.no_figures)
     for note in doc["notes"]:
-        if note.startswith(ABOVE_NOISE):
+        if note.startswith((ABOVE_NOISE, START_MISMATCH)):
             print(f"warning: {note}", file=sys.stderr)
     sv = doc["solver"]
     if not sv["converged"]:
