@@ -191,7 +191,7 @@ def test_loro_verdict_needs_most_records_not_just_the_mean():
 def test_start_mismatch_flags_a_record_that_starts_warm_among_cold_ones():
     """One start rule serves every record of a joint fit: a warm-started record is misfitted over its first time
     constants (`start_mismatch`); records that start alike are not flagged."""
-    from smafl_jax.identify._multi_record import START_MISMATCH, start_mismatch
+    from smafl_jax.identify import START_MISMATCH, start_mismatch
 
     rng = np.random.default_rng(3)
     n, dt, k1 = 1200, 0.1, 0.1  # 120 s records, tau 10 s

@@ -39,11 +39,13 @@ from ._fit import SOLVERS, FitResult, as_fit_data, default_trainable, fit, fit_m
 from ._memory_search import MEMORY_FRACTIONS, MEMORY_SWEEPS, search_memory
 from ._metrics import e_mean, error_ratio, max_abs_error, mean_abs_error, metrics, noise_floor, rmse
 from ._multi_record import (
+    START_MISMATCH,
     add_record_extras,
     data_checks_doc,
     data_checks_markdown,
     fit_records,
     loro_sentences,
+    start_mismatch,
     write_records_outputs,
 )
 from ._recalibrate import CALIBRATION_PARAMETERS, Recalibrated, after_segment_metrics, recalibrate, segment_indices
@@ -73,6 +75,8 @@ __all__ = [
     "as_fit_data",
     "SOLVERS",
     "StallStop",
+    "START_MISMATCH",
+    "start_mismatch",
     "STALL_WINDOW",
     "STALL_MIN_GAIN",
     "auto_candidates",
