@@ -623,8 +623,8 @@ def _fixed_design(density, model):
 
 
 #: Walkers x samples evaluated at once (one vmapped batch) by the log-density: a batch keeps each walker's design
-#: (samples x columns) alive, about 1 kB per sample and walker for an EUPI cascade, so 32 walkers on a 90 000-sample
-#: record peaked at 2.9 GB and a 60-min 100 Hz record would need about 12 GB.  Records up to 31 250 samples keep all 32
+#: (samples x columns) alive: `smafl sample` of an EUPI cascade on a 90 000-sample record (56 walkers) peaked at 10.3 GB
+#: in one batch and at 1.6 GB in batches of 11, with the same chain (session 32).  Records up to 31 250 samples keep 32
 #: walkers in one batch, as before.
 WALKER_SAMPLES_PER_BATCH = 1_000_000
 

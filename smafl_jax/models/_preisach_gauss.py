@@ -244,6 +244,8 @@ class GaussianPreisach(AbstractHysteresis):
         rho = self.density()
         width = self.ramp
 
+        # checkpointed: the LM linearises this scan, and without it kept every relay's switching intermediates per
+        # sample (72 bytes per sample and relay; a 60-min 100 Hz record needed > 22 GB); now the relay state alone
         @jax.checkpoint
         def step(r, uk):
             lo, hi = _switch_fractions(uk, a, b, width)
