@@ -51,7 +51,7 @@ from .. import _config  # noqa: F401
 from .._errors import UserInputError
 from ..identify._fit import as_fit_data, default_trainable
 from ..models._constraints import constrain, log_jacobian, positive, unconstrain
-from ..models._hysteresis import column_weight_scales, hysteresis_of, linear_field_columns, thermal_of
+from ..models._hysteresis import column_weight_scales, hysteresis_of, linear_field_columns, record_model, thermal_of
 from ..models._simulate import simulate
 
 __all__ = [
@@ -388,7 +388,9 @@ class Posterior:
         self.model = model
         self.spec = spec
         if sigma is None:
-            res = np.concatenate([np.asarray(simulate(model, u, d)) - y for u, y, d in self.data])
+            res = np.concatenate(
+                [np.asarray(simulate(record_model(model, i), u, d)) - y for i, (u, y, d) in enumerate(self.data)]
+            )
             sigma = float(np.sqrt(np.mean(res**2))) if np.all(np.isfinite(res)) else 0.1 * yr
             sigma = max(sigma, 1e-6 * yr)
         raw = unconstrain(model)
@@ -517,7 +519,7 @@ class _Density(eqx.Module):
         return n * c - n * jnp.log(sigma) - 0.5 * (nu + 1) * jnp.sum(jnp.log1p((r / sigma) ** 2 / nu))
 
     def _design(self, model):
-        A = jnp.concatenate([model.features(u, d) for u, _, d in self.args])
+        A = jnp.concatenate([record_model(model, i).features(u, d) for i, (u, _, d) in enumerate(self.args)])
         y = jnp.concatenate([y for _, y, _ in self.args])
         # column scaling (exact: prior sd scaled alike) keeps the normal equations well conditioned
         c = jnp.maximum(jnp.sqrt(jnp.mean(A * A, axis=0)), 1e-12)
@@ -566,7 +568,7 @@ class _Density(eqx.Module):
 
     def _loglik(self, model, sigma):
         if self.linear == "sample":
-            r = jnp.concatenate([model.simulate(u, d) - y for u, y, d in self.args])
+            r = jnp.concatenate([record_model(model, i).simulate(u, d) - y for i, (u, y, d) in enumerate(self.args)])
             return self._loglik_resid(r, sigma)
         if self.design is not None:
             return self._fixed_loglik(sigma)

@@ -50,7 +50,7 @@ import jax.numpy as jnp
 
 from .. import _config  # noqa: F401
 from .._io import register_model
-from ..models._hysteresis import AbstractHysteresis, hysteresis_of, thermal_of
+from ..models._hysteresis import AbstractHysteresis, hysteresis_of, record_model, thermal_of
 from .protocol import EFFECTS, AbstractEffect, effect_rank
 
 __all__ = ["ExtendedModel", "LoadBound"]
@@ -119,6 +119,11 @@ class ExtendedModel(eqx.Module):
     def stage_effects(self, stage: str) -> list:
         """The effects acting at ``stage``, in catalogue order (the order they act in)."""
         return sorted((e for e in self.effects if e.stage == stage), key=lambda e: effect_rank(e.name))
+
+    def for_record(self, i: int) -> ExtendedModel:
+        """The model as it starts record ``i`` of a joint fit (the base's per-record thermal start)."""
+        base = record_model(self.base, i)
+        return self if base is self.base else eqx.tree_at(lambda m: m.base, self, base)
 
     def with_hysteresis(self, h):
         """Copy with the hysteresis part replaced."""
@@ -256,3 +261,7 @@ class LoadBound(eqx.Module):
 
     def simulate(self, u, dt):
         return self.model.simulate(u, dt, load=self.load)
+
+    def for_record(self, i: int) -> LoadBound:
+        """The bound model as it starts record ``i`` of a joint fit."""
+        return eqx.tree_at(lambda m: m.model, self, record_model(self.model, i))

@@ -45,7 +45,7 @@ from .._compile_cache import persistent_cache_dir, release_if_needed
 from .._errors import UserInputError
 from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
-from ..models._hysteresis import hysteresis_of, thermal_of
+from ..models._hysteresis import hysteresis_of, record_model, thermal_of
 from . import varpro
 from ._gain_prior import check_gain_prior, map_gains
 from ._stall import STALL_MIN_GAIN, STALL_WINDOW, StallStop
@@ -262,7 +262,7 @@ def init_linear(model: _Model, data: Any, dt: float | None = None, *, weights: A
     feats, nonneg, setw = part
     blocks = []
     for i, (u, _, d) in enumerate(data):
-        A = _features(feats, model, jnp.asarray(u), jnp.asarray(d))
+        A = _features(feats, record_model(model, i), jnp.asarray(u), jnp.asarray(d))
         _check_finite_features(A, i, u)
         blocks.append(A)
     A, b = _stack_rows(blocks, data, weights)
@@ -290,7 +290,8 @@ def k1_projection(model: Any, data: tuple, weights: tuple, part: tuple | None = 
     feats, nonneg, setw = _linear_part(model) if part is None else part
 
     def design(m):
-        return _stack_rows([_features(feats, m, jnp.asarray(u), jnp.asarray(d)) for u, _, d in data], data, weights)
+        blocks = [_features(feats, record_model(m, i), jnp.asarray(u), jnp.asarray(d)) for i, (u, _, d) in enumerate(data)]
+        return _stack_rows(blocks, data, weights)
 
     return varpro.LinearProjection(lambda x: _set_log_k1(model, x), design, nonneg, setw, FIT_SOLVE)
 
@@ -325,7 +326,7 @@ def init_profile(
     if not np.all(np.isfinite(grid)) or np.any(grid <= 0):
         raise UserInputError("k1 candidates must be finite and > 0")
     n_rows = sum(u.shape[0] for u, _, _ in data)
-    n_cols = int(np.shape(feats(model, jnp.zeros(3), jnp.asarray(1.0)))[1])
+    n_cols = int(np.shape(feats(record_model(model, 0), jnp.zeros(3), jnp.asarray(1.0)))[1])
     # chunk the vmapped grid so the stacked design matrices stay under ~64 MB
     chunk = int(max(1, min(grid.size, (64 << 20) // (8 * n_rows * n_cols))))
     t0 = time.perf_counter()
@@ -333,8 +334,10 @@ def init_profile(
     def evaluate(ks, n):
         # one vmap over the thermal + operator scans for all k1 candidates of the chunk (padded to one shape)
         blocks = [
-            np.asarray(varpro.batch_design(feats, _set_k1, model, jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d)))
-            for u, _, d in data
+            np.asarray(
+                varpro.batch_design(feats, _set_k1, record_model(model, i), jnp.asarray(ks), jnp.asarray(u), jnp.asarray(d))
+            )
+            for i, (u, _, d) in enumerate(data)
         ]
         out = np.full(n, np.inf)
         for j in range(n):
@@ -376,7 +379,8 @@ from .._choices import SOLVERS  # noqa: E402  (defined there so `smafl fit --hel
 
 
 def _residuals(model, args):
-    return jnp.concatenate([jnp.sqrt(w) * (model.simulate(u, d) - y) for u, y, d, w in args])
+    # record i runs from its own start (`for_record`: a joint fit may hold one thermal start per record)
+    return jnp.concatenate([jnp.sqrt(w) * (record_model(model, i).simulate(u, d) - y) for i, (u, y, d, w) in enumerate(args)])
 
 
 _residuals_jit = eqx.filter_jit(_residuals)
@@ -539,7 +543,7 @@ def fit(
         return res
     feats, nonneg, setw = part
     data = as_fit_data(data, dt)
-    blocks = [_features(feats, res.model, jnp.asarray(u), jnp.asarray(d)) for u, _, d in data]
+    blocks = [_features(feats, record_model(res.model, i), jnp.asarray(u), jnp.asarray(d)) for i, (u, _, d) in enumerate(data)]
     if not all(np.all(np.isfinite(np.asarray(A))) for A in blocks):
         return res
     A, b = _stack_rows(blocks, data, _as_weights(weights, data))

@@ -40,6 +40,7 @@ from .. import _config  # noqa: F401
 from .._errors import UserInputError
 from .._io import register_model
 from ..models._constraints import parameter, positive
+from ..models._hysteresis import record_model
 from ..models._simulate import simulate
 
 __all__ = ["Recalibrated", "recalibrate", "segment_indices", "after_segment_metrics", "CALIBRATION_PARAMETERS"]
@@ -83,6 +84,10 @@ class Recalibrated(eqx.Module):
 
     def __call__(self, u, dt=None):
         return self.simulate(u, dt)
+
+    def for_record(self, i: int) -> Recalibrated:
+        """The wrapped model as it starts record ``i`` of a joint fit."""
+        return eqx.tree_at(lambda m: m.model, self, record_model(self.model, i))
 
     def with_method(self, method: str) -> Recalibrated:
         """Copy with the wrapped model evaluated by ``method`` (see `model_with_method`)."""

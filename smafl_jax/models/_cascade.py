@@ -48,10 +48,21 @@ class Cascade(eqx.Module):
     # phase transformation of an SMA really happens. Play operators are not invariant under the square,
     # so the two are different model classes; `smafl fit` screens both.
     sees: str = eqx.field(static=True, default="voltage")
+    # A joint fit of several records: the operator-memory rule each record starts by (`AbstractHysteresis.RULE_INITS`;
+    # a warm record's operators came up from cold, a cold one's are at rest), with its own thermal start
+    # (`JouleThermal.with_record_starts`).  None: the hysteresis' own rule for every record.
+    record_inits: tuple[str, ...] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.sees not in SEES:
             raise ValueError(f"Cascade sees must be one of {SEES}, got {self.sees!r}")
+        if self.record_inits is not None:
+            n = self.thermal.n_record_starts
+            if n is None or len(self.record_inits) != n:
+                raise ValueError(f"Cascade record_inits needs one rule per record start ({n}), got {self.record_inits!r}")
+            bad = [r for r in self.record_inits if r not in self.hysteresis.RULE_INITS]
+            if bad:
+                raise ValueError(f"Cascade record_inits must be rules of {self.hysteresis.RULE_INITS}, got {bad}")
 
     def drive_of(self, theta):
         """Signal the hysteresis sees for thermal state ``theta``."""
@@ -86,10 +97,29 @@ class Cascade(eqx.Module):
         fresh = self.hysteresis.with_range(0.0, u_max if sees == "voltage" else u_max * u_max)
         return dataclasses.replace(self, hysteresis=fresh, sees=sees)
 
+    def for_record(self, i: int) -> Cascade:
+        """The model as it starts record ``i`` of a joint fit: its thermal start (`JouleThermal.for_record`) and its
+        operator-memory rule (``record_inits``)."""
+        th = self.thermal.for_record(i)
+        if th is self.thermal:
+            return self
+        one = eqx.tree_at(lambda m: m.thermal, self, th)  # a leaf swap: works on traced models (the LM's residuals)
+        if self.record_inits is None:
+            return one
+        return dataclasses.replace(one, hysteresis=self.hysteresis.with_init(self.record_inits[i]), record_inits=None)
+
+    def with_record_starts(self, u0s, inits=None) -> Cascade:
+        """Copy that starts record ``i`` of a joint fit at the thermal state a constant ``u0s[i]`` V would hold, with the
+        operator-memory rule ``inits[i]`` (None: the hysteresis' own rule for all)."""
+        th = self.thermal.with_record_starts(u0s)
+        return dataclasses.replace(self, thermal=th, record_inits=None if inits is None else tuple(inits))
+
     def with_thermal_start(self, init: str, u0: float | None = None) -> Cascade:
-        """Copy whose thermal stage starts by rule ``init`` (``"given"``: the state a constant ``u0`` V would hold)."""
+        """Copy whose thermal stage starts by rule ``init`` (``"given"``: the state a constant ``u0`` V would hold), the
+        same for every record."""
         u0 = None if u0 is None else jnp.asarray(float(u0))
-        return dataclasses.replace(self, thermal=dataclasses.replace(self.thermal, init=init, u0=u0))
+        th = dataclasses.replace(self.thermal, init=init, u0=u0)
+        return dataclasses.replace(self, thermal=th, record_inits=None)
 
     def plant_parts(self) -> tuple[JouleThermal, AbstractHysteresis]:
         """``(thermal, hysteresis)``: the per-sample stages `smafl_jax.control.plant_step` runs (ZOH thermal step, then

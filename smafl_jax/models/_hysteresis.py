@@ -215,6 +215,12 @@ class AbstractHysteresis(eqx.Module):
         """
         return self.with_init(rule)
 
+    def for_record(self, i: int) -> AbstractHysteresis:
+        """The model as it starts record ``i`` of a joint fit: the same (its memory rule applies to each record's own
+        first input; only a thermal stage holds per-record starts, `JouleThermal.for_record`)."""
+        del i
+        return self
+
     def with_method(self, method: str) -> AbstractHysteresis:
         """Copy evaluated by ``method`` (models with parallel-in-time forms override; others have one form)."""
         del method
@@ -286,6 +292,13 @@ def thermal_of(model: Any) -> Any:
     The one place that answers "does this model have a thermal lag in front of its hysteresis?", so callers ask the
     model instead of testing its class."""
     return getattr(model, "thermal", None) if hysteresis_of(model) is not None else None
+
+
+def record_model(model: Any, i: int) -> Any:
+    """``model`` as it starts record ``i`` of a joint fit: its ``for_record(i)`` (per-record starts: `Cascade`,
+    `JouleThermal`), or the model itself for a class without per-record state (any user model with a ``simulate``)."""
+    per_record = getattr(model, "for_record", None)
+    return model if per_record is None else per_record(i)
 
 
 def linear_field_columns(h: AbstractHysteresis) -> dict[str, np.ndarray]:

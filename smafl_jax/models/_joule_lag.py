@@ -43,6 +43,11 @@ class JouleLag(eqx.Module):
         """Output for voltage record ``u`` sampled every ``dt`` seconds."""
         return self.thermal.simulate(u, dt) + self.offset
 
+    def for_record(self, i: int) -> JouleLag:
+        """The model as it starts record ``i`` of a joint fit (`JouleThermal.for_record`)."""
+        th = self.thermal.for_record(i)
+        return self if th is self.thermal else eqx.tree_at(lambda m: m.thermal, self, th)
+
     def features(self, u, dt):
         """Design matrix ``(T, 2)``: the lag of ``U^2`` with unit static gain (``k2 = k1``) and a column of ones."""
         lag = dataclasses.replace(self.thermal, k2=self.thermal.k1).simulate(u, dt)

@@ -18,6 +18,7 @@ import jax.numpy as jnp
 from .. import _config  # noqa: F401
 from .._errors import UserInputError
 from .._io import register_model
+from ._hysteresis import record_model
 
 __all__ = ["MedianOfModels"]
 
@@ -42,6 +43,10 @@ class MedianOfModels(eqx.Module):
     def simulate(self, u, dt):
         """Median over the members of their outputs for input record ``u`` sampled every ``dt`` seconds."""
         return jnp.median(jnp.stack([m.simulate(u, dt) for m in self.members]), axis=0)
+
+    def for_record(self, i: int) -> MedianOfModels:
+        """Every member as it starts record ``i`` of a joint fit."""
+        return dataclasses.replace(self, members=tuple(record_model(m, i) for m in self.members))
 
     def with_method(self, method: str) -> MedianOfModels:
         """Copy with every member evaluated by ``method`` (members without that option are kept as they are)."""

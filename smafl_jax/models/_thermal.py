@@ -19,11 +19,15 @@ at the sample instant, so
 With this convention a fast thermal state (``k1 dt >> 1``) gives
 ``theta(k) = g U(k)^2`` exactly, so the cascade reduces to the voltage-domain
 EUPI.  Initial state: ``"steady"`` (default: at rest with the first input,
-``theta(-1) = g U(0)^2``, which is ambient for records that start at 0 V) or
-``"ambient"`` (``theta(-1) = 0``).
+``theta(-1) = g U(0)^2``, which is ambient for records that start at 0 V),
+``"ambient"`` (``theta(-1) = 0``) or ``"given"`` (the state a constant ``u0`` V
+would hold).  A joint fit of several records may hold one ``u0`` per record
+(a vector): each record then starts from its own state, and `for_record` picks one.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import equinox as eqx
 import jax
@@ -31,6 +35,7 @@ import jax.numpy as jnp
 from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
+from .._errors import UserInputError
 from .._io import register_model
 from ..ops import affine
 from ._constraints import positive
@@ -95,6 +100,23 @@ class JouleThermal(eqx.Module):
             raise ValueError(f"JouleThermal init must be one of {INITS}, got {self.init!r}")
         if (self.init == "given") != (self.u0 is not None):
             raise ValueError("JouleThermal needs u0 exactly when init='given' (the initial effective voltage, V)")
+        if self.u0 is not None and jnp.ndim(self.u0) > 1:
+            raise ValueError(f"JouleThermal u0 must be a scalar or one value per record (1-D), got shape {jnp.shape(self.u0)}")
+
+    @property
+    def n_record_starts(self) -> int | None:
+        """Number of per-record starts (``u0`` a vector, from a joint fit of several records), else None."""
+        return None if self.u0 is None or jnp.ndim(self.u0) == 0 else int(jnp.shape(self.u0)[0])
+
+    def for_record(self, i: int) -> JouleThermal:
+        """This stage as it starts record ``i`` of a joint fit: its own ``u0`` when the fit kept one per record."""
+        if self.n_record_starts is None:
+            return self
+        return eqx.tree_at(lambda t: t.u0, self, self.u0[i])  # a leaf swap: no __init__, so it works on traced models
+
+    def with_record_starts(self, u0s) -> JouleThermal:
+        """Copy that starts record ``i`` of a joint fit at the state a constant ``u0s[i]`` V would hold."""
+        return dataclasses.replace(self, init="given", u0=jnp.asarray(u0s, dtype=jnp.float64).reshape(-1))
 
     @property
     def gain(self):
@@ -125,6 +147,12 @@ class JouleThermal(eqx.Module):
         if self.init == "steady":
             return self.gain * u_first**2
         if self.init == "given":
+            if self.n_record_starts is not None:  # a static shape: fails at trace time, before any scan runs
+                raise UserInputError(
+                    f"this thermal model holds one start per record of its joint fit ({self.n_record_starts} records): "
+                    "run record i with model.for_record(i), or a new record with an initial-state rule "
+                    "(steady, cold or estimate)"
+                )
             return self.gain * self.u0**2 + 0.0 * u_first
         return jnp.zeros_like(u_first)
 
@@ -141,6 +169,9 @@ class JouleThermal(eqx.Module):
         """The rates and the start state for a fit report (``report.md``), one line each."""
         k1, k2 = float(self.k1), float(self.k2)
         start = {"steady": "at rest with the first input", "ambient": "cold (ambient)"}.get(self.init, self.init)
-        if self.init == "given" and self.u0 is not None:
+        if self.init == "given" and self.n_record_starts is not None:
+            each = ", ".join(f"{float(v):.4g}" for v in self.u0)
+            start = f"fitted per record: the state a constant {each} V would hold"
+        elif self.init == "given" and self.u0 is not None:
             start = f"fitted: the state a constant {float(self.u0):.4g} V would hold"
         return [f"thermal: k1 = {k1:.6g} 1/s (time constant {1 / k1:.4g} s), k2 = {k2:.6g}", f"thermal state at t = 0: {start}"]
