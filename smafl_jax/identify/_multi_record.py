@@ -241,8 +241,13 @@ def _heldout(model, info, rec):
         return y_shared, np.ones(len(rec), bool), {"rule": "the fitted start, scored whole"}
     est, got = estimate_initial_state(shared, rec.u, rec.y, rec.dt)
     scored = np.arange(len(rec)) >= got["window_samples"]
+    after = int(scored.sum()) >= 10
+    if not after:  # a record shorter than its window (5 thermal time constants): nothing would be left to score
+        scored[:] = True
     start = {
-        "rule": "estimated from the held-out record's first window (estimate_initial_state), scored after it",
+        "rule": "estimated from the held-out record's first window (estimate_initial_state), scored after it"
+        if after
+        else "estimated from the held-out record's first window, which covers the record: scored whole",
         "window_samples": got["window_samples"],
         "thermal": got["thermal"],
         "memory": got["memory"],
