@@ -124,3 +124,35 @@ def test_heldout_record_shorter_than_its_window_is_scored_whole(rng):
     rec = sj.Record.from_arrays(np.arange(n) * DT, u, np.asarray(_plant(3.5).simulate(u, DT)), name="short")
     y, scored, start = _heldout(_plant(1.5), {}, rec)
     assert scored.all() and start["rule"].endswith("scored whole") and np.all(np.isfinite(y))
+
+
+def test_simulating_a_training_record_of_a_joint_fit_uses_its_own_start(tmp_path, rng):
+    """`smafl simulate fit.json A.csv` with A a training record of a joint fit (same file content): A's own fitted
+    start and memory rule, not the shared rule the saved model carries; another record keeps the shared rule."""
+    n = 300
+    shared = _plant(0.2)
+    paths = []
+    for name in ("a", "b"):
+        u = _drive(rng, n)
+        data = np.column_stack([np.arange(n) * DT, u, np.asarray(_plant(3.0).simulate(u, DT))])
+        paths.append(tmp_path / f"{name}.csv")
+        np.savetxt(paths[-1], data, delimiter=",", header="time_s,voltage_V,displacement_mm", comments="")
+    rec_a = sj.load_record(paths[0])
+    sj.save_model(
+        tmp_path / "fit.json",
+        shared,
+        data={
+            "records": [{"name": "a", "sha256": rec_a.sha256}],
+            "input_column": "voltage_V",
+            "output_column": "displacement_mm",
+        },
+        per_record_start=[{"record": "a", "u0_V": 3.0, "memory": "zero"}],
+    )
+    got = sj.simulate_record(tmp_path / "fit.json", paths[0])
+    own = shared.with_thermal_start("given", 3.0)
+    own = own.with_hysteresis(own.hysteresis.with_init("zero"))
+    np.testing.assert_allclose(got.y, own.simulate(rec_a.u, rec_a.dt), rtol=1e-12, atol=1e-12)
+    assert any("training record a" in t for t in got.notes)
+    other = sj.simulate_record(tmp_path / "fit.json", paths[1])
+    rec_b = sj.load_record(paths[1])
+    np.testing.assert_allclose(other.y, shared.simulate(rec_b.u, rec_b.dt), rtol=1e-12, atol=1e-12)

@@ -529,7 +529,8 @@ def _fit_records_structure(
                 + ", ".join(f"{n} {v:.4g}" for n, v in zip(names, record_u0))
                 + "; per_record_start in fit.json); the saved model starts by the screened shared rule "
                 f"({_shared_text(info['record_starts']['shared_rule'])}): on a new record use the initial-state rule estimate "
-                "(`smafl simulate --initial-state estimate`) when it may start otherwise"
+                "(`smafl simulate --initial-state estimate`) when it may start otherwise; `smafl simulate` of a training "
+                "record (the same file) runs it from its own start"
             )
         elif len(records) > 1:
             notes.append(

@@ -98,6 +98,17 @@ def _columns(rec) -> dict:
     return cols
 
 
+def training_record_start(doc: Mapping, rec) -> dict | None:
+    """The fitted start of ``rec`` when it is one of the training records of a joint fit (same file content, fit.json
+    ``data.records[].sha256``) that gave each record its own start (``per_record_start[].u0_V``); else None."""
+    records = (doc.get("data") or {}).get("records") or []
+    sha = rec.sha256
+    name = next((r.get("name") for r in records if sha and r.get("sha256") == sha), None)
+    if name is None:
+        return None
+    return next((row for row in doc.get("per_record_start") or [] if row.get("record") == name and "u0_V" in row), None)
+
+
 def simulate_record(
     model: PathLike | Any,
     record: PathLike | Record,
@@ -200,6 +211,15 @@ def simulate_record(
         model, start = with_initial_state(model, initial_state, rec.u, y_meas, rec.dt)
         detail = f": thermal {start['thermal']}, operator memory {start['memory']}" if "thermal" in start else ""
         note(f"initial state {initial_state}{detail}")
+    elif (own := training_record_start(doc, rec)) is not None:
+        # a training record of a joint fit: its own fitted start, not the shared rule the saved model carries
+        model = model.with_thermal_start("given", own["u0_V"])
+        if own.get("memory"):
+            model = model.with_hysteresis(model.hysteresis.with_init(own["memory"]))
+        memory = f", {own['memory']} operator memory" if own.get("memory") else ""
+        note(
+            f"initial state fit: {rec.name} is training record {own['record']} of the joint fit: its own start, {own['u0_V']:.4g} V{memory}"
+        )
     if measured and measured_col not in cols_in:
         raise UserInputError(f"{data_label}: no column {measured_col!r} to score against; columns: {sorted(cols_in)}")
     calibration = None
