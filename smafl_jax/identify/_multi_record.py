@@ -207,13 +207,6 @@ def _joint_fit(
     return res, info
 
 
-def _shared_text(shared) -> str:
-    init, u0 = shared
-    if init == "given":
-        return f"the state a constant {u0:.4g} V would hold"
-    return "at rest with the first input" if init == "steady" else "cold"
-
-
 def _with_shared_start(model, info):
     """``model`` (a joint fit, maybe with one thermal start per record) started by the screening's one shared rule: the
     form saved to fit.json and run on a new record, whose own start is not known."""
@@ -528,7 +521,7 @@ def _fit_records_structure(
                 "each record starts from its own fitted thermal state (the state a constant u0 V would hold: "
                 + ", ".join(f"{n} {v:.4g}" for n, v in zip(names, record_u0))
                 + "; per_record_start in fit.json); the saved model starts by the screened shared rule "
-                f"({_shared_text(info['record_starts']['shared_rule'])}): on a new record use the initial-state rule estimate "
+                f"({thermal_of(res.model).start_description()}): on a new record use the initial-state rule estimate "
                 "(`smafl simulate --initial-state estimate`) when it may start otherwise; `smafl simulate` of a training "
                 "record (the same file) runs it from its own start"
             )

@@ -31,7 +31,7 @@ from ._choose import COLD_FRACTION, SCREEN_XATOL, START_FRACTIONS
 from ._fit import _as_weights, _default_k1_grid, _linear_part, _set_k1, as_fit_data, init_profile
 from .linear import solve_gram
 
-__all__ = ["fit_record_starts", "shared_start", "RECORD_K1_GRID", "RECORD_SWEEPS"]
+__all__ = ["fit_record_starts", "RECORD_K1_GRID", "RECORD_SWEEPS"]
 
 #: Thermal rates of the grid the starts are chosen on (log-spaced over the fit's k1 range; the model's own is added).
 RECORD_K1_GRID = 8
@@ -39,14 +39,6 @@ RECORD_K1_GRID = 8
 RECORD_SWEEPS = 4
 #: Design blocks of one vmapped call stay under this many bytes (as `init_profile`'s chunks).
 _CHUNK_BYTES = 64 << 20
-
-
-def shared_start(model: Any, u_first: float) -> float:
-    """The initial effective voltage (V) that ``model``'s one start rule gives a record whose first input is ``u_first``."""
-    th = thermal_of(model)
-    if th.init == "given":
-        return float(th.u0)
-    return float(u_first) if th.init == "steady" else 0.0
 
 
 def _normal_equations(model, feats, rec, w, starts, k1s):
@@ -136,7 +128,7 @@ def fit_record_starts(model: Any, data: Any, weights: Any = None, *, progress: b
     if not u_hi > 0:
         return None
     floor = COLD_FRACTION * u_hi  # a start at exactly 0 V could never warm up in the refinement (softplus, `COLD_FRACTION`)
-    before = [max(shared_start(model, u[0]), floor) for u, _, _ in data]
+    before = [max(th.start_voltage(u[0]), floor) for u, _, _ in data]
     candidates = [
         sorted({*(f * u_hi for f in START_FRACTIONS), max(float(u[0]), floor), b}) for (u, _, _), b in zip(data, before)
     ]
@@ -171,7 +163,10 @@ def fit_record_starts(model: Any, data: Any, weights: Any = None, *, progress: b
     info = {
         "rule": "one initial effective voltage per record, chosen with the thermal rate on a grid (gains profiled), "
         "then trained with the rest",
-        "shared_rule": [th.init, None if th.u0 is None else float(th.u0)],  # the one rule it came from (`shared_start`)
+        "shared_rule": [
+            th.init,
+            None if th.u0 is None else float(th.u0),
+        ],  # the one rule it came from (`JouleThermal.start_voltage`)
         "shared_u0": before,
         "u0": starts,
         "memory": list(rules) if rules else None,

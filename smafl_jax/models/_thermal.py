@@ -165,13 +165,26 @@ class JouleThermal(eqx.Module):
         as the cascade does."""
         return float(self.k1 if k1 is None else k1) * float(dt) >= 1.0
 
+    def start_voltage(self, u_first: float) -> float:
+        """The initial effective voltage (V) this start rule gives a record whose first input is ``u_first`` (one
+        shared start; the joint fit's per-record search starts from it)."""
+        if self.init == "given":
+            return float(self.u0)
+        return float(u_first) if self.init == "steady" else 0.0
+
+    def start_description(self) -> str:
+        """The start state in words (report and fit notes)."""
+        if self.init == "given" and self.n_record_starts is not None:
+            each = ", ".join(f"{float(v):.4g}" for v in self.u0)
+            return f"fitted per record: the state a constant {each} V would hold"
+        if self.init == "given":
+            return f"fitted: the state a constant {float(self.u0):.4g} V would hold"
+        return "at rest with the first input" if self.init == "steady" else "cold (ambient)"
+
     def describe(self) -> list[str]:
         """The rates and the start state for a fit report (``report.md``), one line each."""
         k1, k2 = float(self.k1), float(self.k2)
-        start = {"steady": "at rest with the first input", "ambient": "cold (ambient)"}.get(self.init, self.init)
-        if self.init == "given" and self.n_record_starts is not None:
-            each = ", ".join(f"{float(v):.4g}" for v in self.u0)
-            start = f"fitted per record: the state a constant {each} V would hold"
-        elif self.init == "given" and self.u0 is not None:
-            start = f"fitted: the state a constant {float(self.u0):.4g} V would hold"
-        return [f"thermal: k1 = {k1:.6g} 1/s (time constant {1 / k1:.4g} s), k2 = {k2:.6g}", f"thermal state at t = 0: {start}"]
+        return [
+            f"thermal: k1 = {k1:.6g} 1/s (time constant {1 / k1:.4g} s), k2 = {k2:.6g}",
+            f"thermal state at t = 0: {self.start_description()}",
+        ]
