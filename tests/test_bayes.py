@@ -213,6 +213,18 @@ def test_recovery_summary_and_short_chain_warning():
     assert not d["reliable"] and d["warnings"]
 
 
+def test_diagnostics_of_a_chain_whose_walker_never_moved_warn_instead_of_failing():
+    """A walker that never moved along a parameter has no autocorrelation estimate (emcee divides 0 by 0): the
+    diagnostics count it as the whole chain and say the chain is too short (it once raised a NaN-to-int ValueError)."""
+    rng = np.random.default_rng(0)
+    chain = rng.standard_normal((12, 6, 2))
+    chain[:, 0, 1] = 0.5  # walker 0 stuck on parameter 1
+    run = sj.SampleRun(chain, np.zeros((12, 6)), np.full(6, 0.3), ["a", "b"], None, 0)
+    with pytest.warns(sj.ChainTooShortWarning, match="too short"):
+        d = sj.diagnostics(run)
+    assert np.isfinite(d["autocorr_time"]).all() and d["autocorr_time"][1] == 12 - d["burn"] and not d["reliable"]
+
+
 CHILD = SETUP + textwrap.dedent(
     """
     import sys

@@ -29,6 +29,7 @@ Preisach levels) are never sampled; its weights are its `linear_fields`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import os
@@ -297,6 +298,10 @@ def _element_names(name, shape):
     return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
 
 
+def _float_or_none(x):
+    return None if x is None else float(x)
+
+
 def _ridge_lstsq(A, y, ridge):
     """``argmin |A w - y|^2 + |ridge * w|^2`` by SVD (stays finite for duplicate operator columns)."""
     Aa = jnp.concatenate([A, jnp.diag(ridge)], axis=0)
@@ -340,7 +345,9 @@ class Posterior:
     (default: RMS residual of ``model``).  ``priors``: ``{name: Prior}`` overriding the
     defaults (names as in `names_leaf`).  ``linear``: see the module docstring.
     ``gain_scale``: prior sd of the marginalised/profiled gains (default 10x output range).
-    ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).
+    ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).  ``new_record_start``: for a model
+    that holds one start per record of ``data`` (a joint fit's `for_record`), the thermal start rule ``(init, u0)`` a
+    record outside ``data`` starts by in `predict` (the joint fit's shared rule, as ``smafl simulate`` uses it).
     """
 
     def __init__(
@@ -357,6 +364,7 @@ class Posterior:
         linear="sample",
         gain_scale=None,
         prior_only=False,
+        new_record_start=None,
     ):
         if noise not in NOISE_MODELS:
             raise UserInputError(f"noise model must be one of {NOISE_MODELS}, got {noise!r}")
@@ -426,6 +434,7 @@ class Posterior:
             nu=float(nu),
             linear=linear,
             prior_only=bool(prior_only),
+            new_start=None if new_record_start is None else (str(new_record_start[0]), _float_or_none(new_record_start[1])),
         )
         if linear != "sample" and not jax.tree_util.tree_leaves(raw_train):
             self._d = dataclasses.replace(self._d, design=_fixed_design(self._d, model))
@@ -466,15 +475,24 @@ class Posterior:
             lp = self(pos)
         raise UserInputError("the log-posterior is not finite around the starting model; check the fit and the priors")
 
-    def predict(self, thetas, u, dt, rng):
+    def started_model(self, record=None):
+        """The starting model (the fit) as it starts record ``record`` of the data, or a new record (None)."""
+        return self._d.started(self.model, record)
+
+    def predict(self, thetas, u, dt, rng, record=None):
         """Posterior-predictive draws on input ``u``: ``(mean function (S, T), with noise (S, T))``.
 
         With marginalised gains each draw takes gains from their exact conditional
         Gaussian given the sampled nonlinear parameters; with profiled gains, their estimate.
+        ``record``: ``u`` is record ``record`` of the data (its own start, `record_model`); None: a new record,
+        started by ``new_record_start`` when the model holds one start per record.
         """
+        if record is not None and not 0 <= int(record) < len(self.data):
+            raise UserInputError(f"record must be in [0, {len(self.data)}) (the conditioned records), got {record}")
         thetas = jnp.asarray(thetas, dtype=jnp.float64)
         keys = jax.random.split(jax.random.PRNGKey(int(rng.integers(2**31))), thetas.shape[0])
-        f, yrep = _batch_predict(self._d, thetas, keys, jnp.asarray(u, dtype=jnp.float64), jnp.asarray(dt, dtype=jnp.float64))
+        u, dt = jnp.asarray(u, dtype=jnp.float64), jnp.asarray(dt, dtype=jnp.float64)
+        f, yrep = _batch_predict(self._d, thetas, keys, u, dt, None if record is None else int(record))
         return np.asarray(f), np.asarray(yrep)
 
 
@@ -492,6 +510,7 @@ class _Density(eqx.Module):
     nu: float = eqx.field(static=True)
     linear: str = eqx.field(static=True)
     prior_only: bool = eqx.field(static=True)
+    new_start: tuple | None = eqx.field(static=True, default=None)  # (init, u0) of a record outside args
     design: tuple | None = None  # `_fixed_design`: when only the noise scale is sampled
 
     def unravel(self, theta):
@@ -584,8 +603,14 @@ class _Density(eqx.Module):
         logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log(tau**2)) + logdet_M
         return -0.5 * (quad + logdet_cov + n * _LOG2PI)
 
-    def predict(self, theta, key, u, dt):
-        model, sigma = self.unpack(theta)
+    def started(self, model, record):
+        """``model`` as it starts record ``record`` of the data, or a new record (None: ``new_start``)."""
+        if record is not None:
+            return record_model(model, record)
+        return model if self.new_start is None else model.with_thermal_start(*self.new_start)
+
+    def predict(self, theta, key, u, dt, record=None):
+        model, sigma = self.unpack(theta)  # the gains below are conditioned on all records, each from its own start
         k1, k2 = jax.random.split(key)
         if self.design is not None:
             c = self.design[2]
@@ -601,7 +626,7 @@ class _Density(eqx.Module):
                 z = jax.random.normal(k1, mean.shape)
                 mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
             model = model.with_hysteresis(model.hysteresis.with_linear_weights(mean / c))
-        f = model.simulate(u, dt)
+        f = self.started(model, record).simulate(u, dt)
         e = jax.random.normal(k2, f.shape) if self.noise == "gaussian" else jax.random.t(k2, self.nu, f.shape)
         return f, f + sigma * e
 
@@ -660,12 +685,12 @@ def _batch_physical(density, thetas):
     return jax.vmap(density.physical)(thetas)
 
 
-@jax.jit
-def _batch_predict(density, thetas, keys, u, dt):
+@functools.partial(jax.jit, static_argnames=("record",))
+def _batch_predict(density, thetas, keys, u, dt, record=None):
     batch = walker_batch(thetas.shape[0], u.shape[0])
     if batch >= thetas.shape[0]:
-        return jax.vmap(lambda t, k: density.predict(t, k, u, dt))(thetas, keys)
-    return jax.lax.map(lambda tk: density.predict(tk[0], tk[1], u, dt), (thetas, keys), batch_size=batch)
+        return jax.vmap(lambda t, k: density.predict(t, k, u, dt, record))(thetas, keys)
+    return jax.lax.map(lambda tk: density.predict(tk[0], tk[1], u, dt, record), (thetas, keys), batch_size=batch)
 
 
 # -- running ------------------------------------------------------------------
@@ -880,6 +905,10 @@ def load_run(path: str | os.PathLike, names: Sequence[str], name: str = "mcmc") 
 # -- diagnostics and summary --------------------------------------------------
 
 
+def _or_length(tau, n):
+    return np.where(np.isfinite(tau), tau, float(n))
+
+
 def diagnostics(run: SampleRun, burn: int | None = None, *, warn: bool = True) -> dict[str, Any]:
     """emcee autocorrelation times, acceptance fraction and effective sample sizes.
 
@@ -891,15 +920,18 @@ def diagnostics(run: SampleRun, burn: int | None = None, *, warn: bool = True) -
 
     chain = run.chain
     n_steps, n_walkers, _ = chain.shape
-    tau_all = emcee.autocorr.integrated_time(chain, tol=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # a parameter on which some walker never moved has no autocorrelation estimate (0/0): count it as the whole chain
+        tau_all = _or_length(emcee.autocorr.integrated_time(chain, tol=0), n_steps)
     if burn is None:
         burn = min(n_steps // 2, max(n_steps // 5, int(math.ceil(3 * np.nanmax(tau_all)))))
     burn = int(burn)
     if not 0 <= burn < n_steps:
         raise UserInputError(f"burn-in must be in [0, {n_steps}), got {burn}")
     kept = chain[burn:]
-    tau = emcee.autocorr.integrated_time(kept, tol=0)
     n_kept = kept.shape[0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tau = _or_length(emcee.autocorr.integrated_time(kept, tol=0), n_kept)
     ess = n_kept * n_walkers / tau
     tau_max = float(np.nanmax(tau))
     reliable = bool(n_kept >= 50 * tau_max)

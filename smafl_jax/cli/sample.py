@@ -1,4 +1,4 @@
-"""``smafl sample DATA.csv --fit fit.json --out DIR``: Bayesian uncertainty of a fitted model (emcee).
+"""``smafl sample DATA.csv [more records] --fit fit.json --out DIR``: Bayesian uncertainty of a fitted model (emcee).
 
 Writes to DIR: ``chain.h5`` (emcee HDF5 backend; rerunning the same command
 resumes an interrupted run), ``summary.json``, ``parameters.csv``,
@@ -17,7 +17,12 @@ from ._lines import workflow_lines_on_stderr
 
 def add_parser(sub):
     p = sub.add_parser("sample", help="posterior uncertainty of a fitted model by MCMC (emcee), with diagnostics and plots")
-    p.add_argument("data_csv", help="CSV record to condition on (time_s, input, output)")
+    p.add_argument(
+        "data_csv",
+        nargs="+",
+        help="CSV record to condition on (time_s, input, output); several files, a folder (its *.csv) or a glob condition "
+        "ONE model on all of them, each record run from its own start (a joint fit's training record: its fitted start)",
+    )
     p.add_argument("--fit", required=True, help="fit.json (or model file) whose model is the starting point")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--steps", type=int, default=3000, help="chain length per walker (default 3000)")
@@ -39,13 +44,15 @@ def add_parser(sub):
     )
     p.add_argument("--gain-scale", type=float, default=None, help="prior sd of marginalised gains (default 10x output range)")
     p.add_argument(
-        "--heldout", default=None, help="held-out CSV for the predictive check (default: the last --holdout-fraction of DATA)"
+        "--heldout",
+        default=None,
+        help="held-out CSV for the predictive check, run as a new record (default: the last --holdout-fraction of each record)",
     )
     p.add_argument(
         "--holdout-fraction",
         type=float,
         default=0.25,
-        help="tail of DATA held out when no --heldout is given (default 0.25; 0 = use all)",
+        help="tail of each record held out when no --heldout is given (default 0.25; 0 = use all)",
     )
     p.add_argument("--input", default=None, help="input column (default: the fit's)")
     p.add_argument("--output", default=None, help="output column (default: the fit's)")
@@ -77,7 +84,7 @@ def run(args):
 
     with workflow_lines_on_stderr(W.__name__, warning_prefix=False):
         res = W.sample_posterior(
-            args.data_csv,
+            args.data_csv[0] if len(args.data_csv) == 1 else args.data_csv,
             args.fit,
             out=args.out,
             heldout=args.heldout,
@@ -114,6 +121,8 @@ def run(args):
     cover = summary["heldout_coverage_95"]
     if cover is not None:
         print(f"held-out points inside the 95 % predictive band: {100 * cover:.1f} %")
+    for name, c in (summary.get("heldout_coverage_95_per_record") or {}).items():
+        print(f"  {name}: {'-' if c is None else f'{100 * c:.1f} %'}")
     for w in summary["warnings"]:
         print(f"WARNING: {w}", file=sys.stderr)
     print(f"wrote {out}/summary.json, parameters.csv, corner.png, trace.png, predictive_time.png, predictive_loop.png")

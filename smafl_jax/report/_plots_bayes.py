@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["corner_figure", "trace_figure", "predictive_time_figure", "predictive_loop_figure", "parameter_label"]
+__all__ = [
+    "corner_figure",
+    "trace_figure",
+    "predictive_time_figure",
+    "predictive_loop_figure",
+    "panels_figure",
+    "parameter_label",
+]
 
 #: Units of the parameters the sampler can draw (the rest are in the model's own units, said as such).
 PARAMETER_UNITS = {
@@ -101,12 +108,16 @@ def trace_figure(chain_phys, names, burn, max_params=8, max_walkers=16, output_u
     return fig
 
 
-def predictive_time_figure(time, y, f, yrep, train_mask, *, ylabel="output"):
-    """95 % bands of the mean function and of new observations over time, data on top."""
-    plt = _plt()
+def predictive_time_figure(time, y, f, yrep, train_mask, *, ylabel="output", ax=None, title=None):
+    """95 % bands of the mean function and of new observations over time, data on top: ``(figure, held-out coverage)``.
+
+    ``ax``: draw into this axes (one panel per record of a joint posterior); ``title``: what the panel shows."""
     fq = np.quantile(f, [0.025, 0.5, 0.975], axis=0)
     yq = np.quantile(yrep, [0.025, 0.975], axis=0)
-    fig, ax = plt.subplots(figsize=(9, 3.6))
+    if ax is None:
+        fig, ax = _plt().subplots(figsize=(9, 3.6))
+    else:
+        fig = ax.figure
     ax.fill_between(time, yq[0], yq[1], color="C0", alpha=0.2, lw=0, label="95 % predictive (with noise)")
     ax.fill_between(time, fq[0], fq[1], color="C0", alpha=0.5, lw=0, label="95 % model (mean function)")
     ax.plot(time, fq[1], color="C0", lw=0.8, label="posterior median")
@@ -118,17 +129,20 @@ def predictive_time_figure(time, y, f, yrep, train_mask, *, ylabel="output"):
     ax.set_ylabel(_with_unit(ylabel))
     ax.legend(fontsize=7, loc="best")
     cover = float(np.mean((y[~tm] >= yq[0][~tm]) & (y[~tm] <= yq[1][~tm]))) if (~tm).any() else None
-    ttl = "posterior predictive over time"
+    ttl = title or "posterior predictive over time"
     if cover is not None:
         ttl += f"; held-out points inside the 95 % predictive band: {100 * cover:.1f} %"
     ax.set_title(ttl, fontsize=9)
     return fig, cover
 
 
-def predictive_loop_figure(u, y, f, train_mask, *, xlabel="input", ylabel="output", n_draws=30):
-    """Hysteresis loop: posterior draws of the model output against the input, data on top."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(5.5, 4.5))
+def predictive_loop_figure(u, y, f, train_mask, *, xlabel="input", ylabel="output", n_draws=30, ax=None, title=None):
+    """Hysteresis loop: posterior draws of the model output against the input, data on top (``ax``, ``title``: as
+    `predictive_time_figure`)."""
+    if ax is None:
+        fig, ax = _plt().subplots(figsize=(5.5, 4.5))
+    else:
+        fig = ax.figure
     for k in range(min(n_draws, f.shape[0])):
         ax.plot(u, f[k], color="C0", lw=0.4, alpha=0.25, label="posterior draws" if k == 0 else None)
     fq = np.quantile(f, [0.025, 0.975], axis=0)
@@ -141,5 +155,16 @@ def predictive_loop_figure(u, y, f, train_mask, *, xlabel="input", ylabel="outpu
     ax.set_xlabel(_with_unit(xlabel))
     ax.set_ylabel(_with_unit(ylabel))
     ax.legend(fontsize=7)
-    ax.set_title("posterior predictive over the hysteresis loop", fontsize=9)
+    ax.set_title(title or "posterior predictive over the hysteresis loop", fontsize=9)
     return fig
+
+
+def panels_figure(n: int, *, width: float, height: float, columns: int = 1):
+    """``(figure, flat list of n axes)``: one panel per record of a joint posterior (spare panels hidden)."""
+    rows = -(-n // columns)
+    fig, axes = _plt().subplots(rows, columns, figsize=(width * columns, height * rows), squeeze=False)
+    flat = list(axes.ravel())
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    fig.set_layout_engine("constrained")
+    return fig, flat[:n]

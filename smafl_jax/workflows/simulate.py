@@ -109,6 +109,15 @@ def training_record_start(doc: Mapping, rec) -> dict | None:
     return next((row for row in doc.get("per_record_start") or [] if row.get("record") == name and "u0_V" in row), None)
 
 
+def started_as_in_fit(model: Any, row: Mapping) -> Any:
+    """``model`` started as one training record of its joint fit: ``row`` is that record's fit.json
+    ``per_record_start`` entry (`training_record_start`), its ``u0_V`` and operator-memory rule."""
+    model = model.with_thermal_start("given", row["u0_V"])
+    if row.get("memory"):
+        model = model.with_hysteresis(model.hysteresis.with_init(row["memory"]))
+    return model
+
+
 def simulate_record(
     model: PathLike | Any,
     record: PathLike | Record,
@@ -213,9 +222,7 @@ def simulate_record(
         note(f"initial state {initial_state}{detail}")
     elif (own := training_record_start(doc, rec)) is not None:
         # a training record of a joint fit: its own fitted start, not the shared rule the saved model carries
-        model = model.with_thermal_start("given", own["u0_V"])
-        if own.get("memory"):
-            model = model.with_hysteresis(model.hysteresis.with_init(own["memory"]))
+        model = started_as_in_fit(model, own)
         memory = f", {own['memory']} operator memory" if own.get("memory") else ""
         note(
             f"initial state fit: {rec.name} is training record {own['record']} of the joint fit: its own start, {own['u0_V']:.4g} V{memory}"
