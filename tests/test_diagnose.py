@@ -451,6 +451,38 @@ def test_cli_no_effect_selects_none(truth, drives, tmp_path, capsys):
     assert "range not checked" not in cap.out + cap.err
 
 
+def test_agreement_names_effects_selected_on_more_than_half_of_the_records():
+    from smafl_jax.diagnosis import agreement
+
+    two = agreement([["creep"], ["creep", "delay"]])
+    assert two["consistent"] == ["creep"] and two["some_records"] == ["delay"] and two["needed"] == 2
+    three = agreement([["creep"], [], ["creep", "delay"]])
+    assert three["consistent"] == ["creep"] and three["effects"] == {"creep": [0, 2], "delay": [2]}
+    assert agreement([[], []])["consistent"] == []
+
+
+def test_cli_several_records_diagnoses_each_and_reports_agreement(truth, drives, tmp_path, capsys):
+    """`smafl diagnose A.csv B.csv`: each record diagnosed on its own in OUT/<record>/, the set's answer in OUT."""
+    from smafl_jax.cli import main
+
+    for name, seed in (("a", 3), ("b", 4)):
+        rec, _ = synthetic_effect_record(truth, drives, None, seed=seed)
+        sj.atomic_write_csv(tmp_path / f"{name}.csv", {"time_s": rec.time, "voltage_V": rec.u, "displacement_mm": rec.y})
+    out = tmp_path / "diag"
+    argv = ["diagnose", str(tmp_path / "a.csv"), str(tmp_path / "b.csv"), "--out", str(out), "--max-candidates", "1"]
+    assert main([*argv, "--quiet", "--no-refine", "--base-start", "fixed", "--no-unexplained", "--n-null", "2"]) == 0
+    printed = capsys.readouterr().out
+    doc = json.loads((out / "diagnosis.json").read_text())
+    assert doc["kind"] == "several_records" and doc["n_records"] == 2 and doc["needed"] == 2
+    assert [r["file"] for r in doc["records"]] == ["a.csv", "b.csv"]
+    for r in doc["records"]:
+        one = json.loads((out / r["folder"] / "diagnosis.json").read_text())
+        assert one["selected"] == r["selected"] and (out / r["folder"] / "extended_fit.json").exists()
+    assert doc["consistent"] == sorted(set(doc["records"][0]["selected"]) & set(doc["records"][1]["selected"]))
+    assert "named for the 2 records" in printed and "a.csv: selected" in printed
+    assert "| a.csv |" in (out / "report.md").read_text()
+
+
 def test_cli_bad_inputs(tmp_path, capsys):
     from smafl_jax.cli import main
 

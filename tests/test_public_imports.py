@@ -28,7 +28,7 @@ PUBLIC_API = (
     "Recalibrated", "Record", "SOLVERS", "SampleRun", "StallStop", "SamplingResult", "SimulationResult", "SweepResult",
     "UserInputError", "as_fit_data", "atomic_savefig", "atomic_write_csv", "atomic_write_json", "atomic_write_text",
     "choose_model_method", "closed_loop_metrics", "consistent_initial_state", "constrain", "default_priors",
-    "default_trainable", "diagnose", "diagnostics", "e_mean", "effective_voltage", "error_ratio",
+    "default_trainable", "diagnose", "diagnose_records", "RecordsDiagnosis", "diagnostics", "e_mean", "effective_voltage", "error_ratio",
     "estimate_initial_state", "file_sha256", "fit", "fit_many", "fit_records", "hysteresis_of", "init_linear",
     "init_profile", "initialize_from_env", "load_model", "load_model_file", "load_priors", "load_record", "load_run",
     "log_jacobian", "max_abs_error", "mean_abs_error", "metrics", "model_from_dict", "model_to_dict", "noise_floor", "search_memory", "MedianOfModels",

@@ -7,7 +7,13 @@ import sys
 
 def add_parser(sub):
     p = sub.add_parser("diagnose", help="fit the base model, study its residuals, attribute and fit missing physical effects")
-    p.add_argument("data", help="CSV record (time_s, input, output, optional extra columns such as branch, load, ambient)")
+    p.add_argument(
+        "data",
+        nargs="+",
+        help="CSV record (time_s, input, output, optional extra columns such as branch, load, ambient); several files, a "
+        "folder (its *.csv) or a glob: each record diagnosed on its own (OUT/<record>/), an effect named for the set when "
+        "selected on more than half of them (OUT/diagnosis.json, OUT/report.md)",
+    )
     p.add_argument("--input", default=None, help="input column (default: sidecar, then a common name)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, then a common name)")
     p.add_argument(
@@ -75,7 +81,6 @@ def add_parser(sub):
 def run(args):
     from .._errors import UserInputError
     from .._io import prepare_out_dir
-    from ..data._data import load_record
     from ..report._report import write_diagnosis
 
     if args.max_candidates is not None and args.max_candidates < 1:
@@ -88,14 +93,14 @@ def run(args):
         raise UserInputError(f"--n-null must be >= 2, got {args.n_null}")
     if args.n_folds < 2:
         raise UserInputError(f"--n-folds must be >= 2, got {args.n_folds}")
-    rec = load_record(args.data, input=args.input, output=args.output)
+    from ..data import load_records
     from ..diagnosis._diagnose import check_record, diagnose
 
-    check_record(rec)  # before the output folder is created
+    records = load_records(args.data, input=args.input, output=args.output)
+    for rec in records:
+        check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)
-
-    diag = diagnose(
-        rec,
+    settings = dict(
         effects=args.effects,
         max_candidates=args.max_candidates,
         min_gain=args.min_gain,
@@ -110,6 +115,10 @@ def run(args):
         refine=not args.no_refine,
         unexplained=not args.no_unexplained,
     )
+    if len(records) > 1:
+        return _several(records, out, settings)
+    rec = records[0]
+    diag = diagnose(rec, **settings)
     write_diagnosis(out, rec, diag)
     for key in ("coverage", "state_coverage"):
         warning = (diag.report["split"].get(key) or {}).get("warning")
@@ -134,4 +143,30 @@ def run(args):
     )
     if diag.unexplained:
         print(f"unexplained: {diag.unexplained['verdict']}")
+    return 0
+
+
+def _several(records, out, settings):
+    """Each record diagnosed on its own, then the effects they agree on (`smafl_jax.diagnose_records`)."""
+    from ..diagnosis._several import diagnose_records
+
+    res = diagnose_records(records, out, **settings)
+    rep = res.report
+    for row in rep["records"]:
+        for w in row["warnings"]:
+            print(f"warning: {row['file']}: {w}", file=sys.stderr)
+        ratio = (
+            f", {row['base_heldout_over_noise']:.3g}x -> {row['extended_heldout_over_noise']:.3g}x the noise"
+            if row["base_heldout_over_noise"] is not None and row["extended_heldout_over_noise"] is not None
+            else ""
+        )
+        print(
+            f"{row['file']}: selected {', '.join(row['selected']) or 'none'}; held-out RMSE {row['heldout_rmse_before']:.4g} "
+            f"-> {row['heldout_rmse_after']:.4g}{ratio}"
+        )
+    some = f"; seen on some records only: {', '.join(rep['some_records'])}" if rep["some_records"] else ""
+    print(
+        f"named for the {rep['n_records']} records (selected on at least {rep['needed']}): "
+        f"{', '.join(rep['consistent']) or 'none'}{some}; wrote {out}"
+    )
     return 0

@@ -38,6 +38,7 @@ from ._residuals import (
     whiteness_report,
 )
 from ._result import Diagnosis, ResidualArrays
+from ._several import AGREEMENT_RULE, RecordsDiagnosis, agreement, diagnose_records
 from ._unexplained import (
     LABEL,
     apply_correction,
@@ -58,6 +59,10 @@ __all__ = [
     "fit_extended",
     "effect_evidence",
     "diagnose",
+    "diagnose_records",
+    "RecordsDiagnosis",
+    "agreement",
+    "AGREEMENT_RULE",
     "lookalike_groups",
     "Diagnosis",
     "ResidualArrays",
