@@ -78,13 +78,6 @@ def _record_file(rec) -> str:
     return Path(rec.path).name if rec.path else rec.name
 
 
-def _file_name(source) -> str:
-    if isinstance(source, (str, os.PathLike)):
-        return Path(source).name
-    path = getattr(source, "path", None)
-    return Path(path).name if path else getattr(source, "name", "record")
-
-
 def _load_fit(fit):
     """``(model, fit.json document, sha256, label)`` from a fit.json / model file path or a model object."""
     from .._io import load_model_file, model_to_dict
@@ -406,15 +399,13 @@ def sample_posterior(
         }
     else:
         summary["data"] = {
-            "file": _file_name(record if not isinstance(record, (list, tuple)) else record[0]),
+            "file": rows[0]["file"],
             "sha256": rec.sha256,
             "input_column": rec.input_name,
             "output_column": rec.output_name,
             "n_train": n_train[0],
             "sample_time_s": rec.dt,
-            "heldout": _file_name(heldout if not isinstance(heldout, (list, tuple)) else heldout[0])
-            if heldout is not None
-            else rows[0]["heldout"],
+            "heldout": ", ".join(_record_file(r) for r in held) if held else rows[0]["heldout"],
         }
         if rows[0]["start"] and own_starts[0] is not None:
             summary["data"]["start"] = rows[0]["start"]
