@@ -121,3 +121,24 @@ def test_a_record_object_with_column_names_is_refused(problem, tmp_path):
     _, fit_json, rec = problem
     with pytest.raises(sj.UserInputError, match="has its columns already"):
         sj.sample_posterior(rec, fit_json, out=tmp_path / "out", input="voltage_V", **FAST)
+
+
+def test_a_heldout_band_wider_than_the_noise_is_reported(problem, tmp_path):
+    """The unconstrained-band rule of `sample_posterior` (`BAND_WARN` noise SDs on more than a tenth of the held-out
+    samples): a band of 10 noise SDs on the held-out half is reported with its first time and size, 2 SDs is not."""
+    from smafl_jax.workflows.sample import BAND_WARN, _sampled_branches, _unconstrained  # private: the rule itself
+
+    _, fit_json, rec = problem
+    n = len(rec) // 2
+    post = sj.Posterior(sj.load_model(fit_json), (rec.u[:n], rec.y[:n]), rec.dt, linear="marginalise")
+    mask = np.arange(len(rec)) < n
+    sampled = _sampled_branches(post, [rec], [n])
+    sigma = 0.02
+    for width, expected in ((10.0, True), (2.0, False)):
+        band = np.where(mask, 0.5, width) * sigma
+        fq = np.stack([-band / 2, np.zeros(len(rec)), band / 2])
+        got = _unconstrained(post, rec, 0, mask, fq, sigma, sampled)
+        assert (got is not None) == expected == (width > BAND_WARN)
+        if expected:
+            assert f"on {len(rec) - n} of {len(rec) - n} held-out samples (from {rec.time[n]:.4g} s)" in got
+            assert f"up to {width * sigma:.3g}" in got
