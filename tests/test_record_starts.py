@@ -204,4 +204,3 @@ def test_sample_on_several_records_runs_each_from_its_own_start(tmp_path, rng, c
         assert err_own < 0.05 and (name == "c" or err_own < 0.2 * err_shared), (name, err_own, err_shared)
     for png in ("predictive_time.png", "predictive_loop.png"):
         assert (out / png).stat().st_size > 0
-
