@@ -204,3 +204,22 @@ def test_sample_on_several_records_runs_each_from_its_own_start(tmp_path, rng, c
         assert err_own < 0.05 and (name == "c" or err_own < 0.2 * err_shared), (name, err_own, err_shared)
     for png in ("predictive_time.png", "predictive_loop.png"):
         assert (out / png).stat().st_size > 0
+
+
+def test_posterior_predicts_a_new_record_by_the_shared_start_rule(rng):
+    """`Posterior(new_record_start=(init, u0, memory))`: a record outside the data (``record=None``) runs from the joint
+    fit's shared rule, thermal start and operator memory; record i of the data from its own start."""
+    u = [_drive(rng, 200) for _ in range(3)]
+    model = _plant(1.0).with_record_starts([0.2, 3.0], ["descended", "from_top"])
+    data = [
+        (x, np.asarray(model.for_record(i).simulate(x, DT)) + 0.01 * rng.standard_normal(200), DT) for i, x in enumerate(u[:2])
+    ]
+    post = sj.Posterior(model, data, linear="sample", new_record_start=("given", 1.0, "zero"))
+    theta = post.theta0[None, :]
+    shared = _plant(1.0).with_hysteresis(_hysteresis().with_init("zero"))
+    f_new, _ = post.predict(theta, u[2], DT, rng)
+    np.testing.assert_allclose(f_new[0], shared.simulate(u[2], DT), rtol=1e-10, atol=1e-10)
+    f_own, _ = post.predict(theta, u[1], DT, rng, record=1)
+    np.testing.assert_allclose(f_own[0], model.for_record(1).simulate(u[1], DT), rtol=1e-10, atol=1e-10)
+    with pytest.raises(sj.UserInputError, match="record must be in"):
+        post.predict(theta, u[1], DT, rng, record=2)

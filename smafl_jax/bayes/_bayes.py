@@ -298,8 +298,9 @@ def _element_names(name, shape):
     return [f"{name}[{','.join(map(str, idx))}]" for idx in np.ndindex(*shape)]
 
 
-def _float_or_none(x):
-    return None if x is None else float(x)
+def _start_rule(init, u0=None, memory=None):
+    """A new record's start as static settings: thermal rule ``init`` (``u0`` V when ``"given"``), memory rule or None."""
+    return (str(init), None if u0 is None else float(u0), None if memory is None else str(memory))
 
 
 def _ridge_lstsq(A, y, ridge):
@@ -347,7 +348,8 @@ class Posterior:
     ``gain_scale``: prior sd of the marginalised/profiled gains (default 10x output range).
     ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).  ``new_record_start``: for a model
     that holds one start per record of ``data`` (a joint fit's `for_record`), the thermal start rule ``(init, u0)`` a
-    record outside ``data`` starts by in `predict` (the joint fit's shared rule, as ``smafl simulate`` uses it).
+    record outside ``data`` starts by in `predict`, with an optional operator-memory rule ``(init, u0, memory)`` (the
+    joint fit's shared rule, as ``smafl simulate`` uses it).
     """
 
     def __init__(
@@ -434,7 +436,7 @@ class Posterior:
             nu=float(nu),
             linear=linear,
             prior_only=bool(prior_only),
-            new_start=None if new_record_start is None else (str(new_record_start[0]), _float_or_none(new_record_start[1])),
+            new_start=None if new_record_start is None else _start_rule(*new_record_start),
         )
         if linear != "sample" and not jax.tree_util.tree_leaves(raw_train):
             self._d = dataclasses.replace(self._d, design=_fixed_design(self._d, model))
@@ -510,7 +512,7 @@ class _Density(eqx.Module):
     nu: float = eqx.field(static=True)
     linear: str = eqx.field(static=True)
     prior_only: bool = eqx.field(static=True)
-    new_start: tuple | None = eqx.field(static=True, default=None)  # (init, u0) of a record outside args
+    new_start: tuple | None = eqx.field(static=True, default=None)  # (init, u0, memory) of a record outside args
     design: tuple | None = None  # `_fixed_design`: when only the noise scale is sampled
 
     def unravel(self, theta):
@@ -607,7 +609,11 @@ class _Density(eqx.Module):
         """``model`` as it starts record ``record`` of the data, or a new record (None: ``new_start``)."""
         if record is not None:
             return record_model(model, record)
-        return model if self.new_start is None else model.with_thermal_start(*self.new_start)
+        if self.new_start is None:
+            return model
+        init, u0, memory = self.new_start
+        model = model.with_thermal_start(init, u0)
+        return model if memory is None else model.with_hysteresis(model.hysteresis.with_init(memory))
 
     def predict(self, theta, key, u, dt, record=None):
         model, sigma = self.unpack(theta)  # the gains below are conditioned on all records, each from its own start
