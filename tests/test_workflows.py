@@ -142,3 +142,17 @@ def test_a_heldout_band_wider_than_the_noise_is_reported(problem, tmp_path):
         if expected:
             assert f"on {len(rec) - n} of {len(rec) - n} held-out samples (from {rec.time[n]:.4g} s)" in got
             assert f"up to {width * sigma:.3g}" in got
+
+
+def test_a_fit_that_validated_far_above_the_noise_warns_that_bands_may_be_narrow():
+    """`STRUCTURE_WARN`: the sampler's bands are conditional on the fitted structure; a fit whose own validation erred
+    above that many noise SDs gets the warning, one below it, or a document without the ratio (a model object), not."""
+    from smafl_jax.workflows.sample import STRUCTURE_WARN, _structure_warning  # private: the rule itself
+
+    def doc(ratio):
+        return {"metrics": {"noise": {"validation_ratio": ratio}}}
+
+    got = _structure_warning(doc(2.5 * STRUCTURE_WARN))
+    assert got is not None and f"{2.5 * STRUCTURE_WARN:.3g}x the noise" in got and "too narrow" in got
+    for quiet in (doc(0.9 * STRUCTURE_WARN), doc(None), doc(float("nan")), {}, {"metrics": None}):
+        assert _structure_warning(quiet) is None
