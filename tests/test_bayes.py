@@ -179,7 +179,7 @@ def test_in_batches_equals_one_vmap_for_every_remainder():
 
     xs = (jnp.asarray(np.random.default_rng(0).standard_normal((7, 3))), jnp.arange(7.0))
     whole = jax.vmap(fn)(xs)
-    for batch in (1, 2, 3, 6, 7, 10):  # remainders 0, 1, 1, 1, none, one batch
+    for batch in (1, 2, 3, 6, 7, 10):  # padded by 0, 1, 2, 5, 0 copies; the last one vmap alone
         got = jax.jit(lambda x, b=batch: _bayes._in_batches(fn, x, b))(xs)
         for a, b in zip(jax.tree_util.tree_leaves(got), jax.tree_util.tree_leaves(whole)):
             assert a.shape == b.shape
