@@ -1,6 +1,6 @@
 """Benchmarks: each of smafl-jax's speed/accuracy figures next to its baseline, in one run.
 
-``python -m benchmarks [--quick] [--only SECTION ...] [--out DIR] [--readme]``
+``python -m benchmarks [--quick] [--only SECTION ...] [--out DIR] [--docs]``
 runs every section module that exists (``bench_<section>.py`` exposing
 ``run(quick: bool) -> list[dict]`` with rows ``{name, ours, baseline, ratio,
 unit}``; optional ``note`` and raw sizes/seconds), skips missing or failing

@@ -26,8 +26,8 @@ SECTIONS = [
     ("default_fit", "bench_default_fit", "6. Default `smafl fit` wall time on a 30 000-sample record (issue 18)"),
 ]
 DEFAULT_RATIO = "as defined by the section (see its module docstring)"
-README_MARK = "<!-- section:performance -->"
-README_END = "<!-- /section:performance -->"
+DOCS_MARK = "<!-- section:performance -->"
+DOCS_END = "<!-- /section:performance -->"
 
 
 def _load(modname):
@@ -184,38 +184,40 @@ def scaling_plot(doc, path):
     return True
 
 
-def update_readme(doc, readme):
-    """Replace the performance section of README.md (between its markers) with the summary table."""
+def update_docs(doc, page):
+    """Replace the generated part of docs/performance.md (between its markers) with the summary tables.
+
+    The README keeps a short summary by hand; the hand-written history around the markers is left alone."""
     from smafl_jax import atomic_write_text
 
-    text = readme.read_text()
-    if README_MARK not in text:
-        raise SystemExit(f"{readme}: marker {README_MARK} not found")
-    body = readme_section(doc)
-    head, rest = text.split(README_MARK, 1)
-    if README_END in rest:
-        rest = rest.split(README_END, 1)[1]
+    text = page.read_text()
+    if DOCS_MARK not in text:
+        raise SystemExit(f"{page}: marker {DOCS_MARK} not found")
+    body = docs_section(doc)
+    head, rest = text.split(DOCS_MARK, 1)
+    if DOCS_END in rest:
+        rest = rest.split(DOCS_END, 1)[1]
     else:  # first time: the section ends where the next heading or marker starts
         cut = [i for i in (rest.find("\n## "), rest.find("\n<!-- section:")) if i >= 0]
         rest = rest[min(cut) :] if cut else ""
-    atomic_write_text(readme, head + README_MARK + "\n" + body.rstrip("\n") + "\n" + README_END + "\n\n" + rest.lstrip("\n"))
+    atomic_write_text(page, head + DOCS_MARK + "\n" + body.rstrip("\n") + "\n" + DOCS_END + "\n\n" + rest.lstrip("\n"))
 
 
-def readme_section(doc):
+def docs_section(doc):
     md = markdown(doc).split("\n")
-    # drop the document title; demote section headings one level under "## Performance"
+    # drop the document title; demote section headings one level under "## Benchmarks"
     body = [("###" + ln[2:]) if ln.startswith("## ") else ln for ln in md[2:]]
     body = [
-        "![cost vs record length and operator count (log-log)](benchmarks/results/scaling.png)"
+        "![cost vs record length and operator count (log-log)](../benchmarks/results/scaling.png)"
         if ln.startswith("Scaling (log-log)")
         else ln
         for ln in body
     ]
     return "\n".join(
         [
-            "## Performance",
+            "## Benchmarks (`python -m benchmarks`)",
             "",
-            "Regenerate with `python -m benchmarks --readme` (about 6 min on 2 cores; `--quick` for a "
+            "Regenerate with `python -m benchmarks --docs` (about 6 min on 2 cores; `--quick` for a "
             "smoke run, `--only operators` for one section). Full tables: `benchmarks/results/RESULTS.md`; "
             "what the numbers mean and why: `benchmarks/README.md`.",
             "",
@@ -236,11 +238,11 @@ def main(argv=None):
         help=f"run only this section (repeatable; one of {', '.join(keys)}); other sections are kept from an earlier results.json in --out",
     )
     p.add_argument("--out", default=str(HERE / "results"), help="output folder (default benchmarks/results)")
-    p.add_argument("--readme", action="store_true", help="also rewrite README.md's performance section")
+    p.add_argument("--docs", action="store_true", help="also rewrite the generated tables of docs/performance.md")
     p.add_argument(
         "--render",
         action="store_true",
-        help="measure nothing: re-render RESULTS.md, scaling.png (and README with --readme) from --out/results.json",
+        help="measure nothing: re-render RESULTS.md, scaling.png (and docs/performance.md with --docs) from --out/results.json",
     )
     args = p.parse_args(argv)
 
@@ -256,8 +258,8 @@ def main(argv=None):
             raise SystemExit(f"--render needs {out / 'results.json'} from an earlier run: {exc}") from exc
         atomic_write_text(out / "RESULTS.md", markdown(doc))
         scaling_plot(doc, out / "scaling.png")
-        if args.readme:
-            update_readme(doc, ROOT / "README.md")
+        if args.docs:
+            update_docs(doc, ROOT / "docs" / "performance.md")
         progress(f"re-rendered {out / 'RESULTS.md'} from results.json")
         return 0
     prev = {}
@@ -281,12 +283,12 @@ def main(argv=None):
     atomic_write_json(out / "results.json", to_jsonable(doc))
     atomic_write_text(out / "RESULTS.md", markdown(doc))
     plotted = scaling_plot(doc, out / "scaling.png")
-    if args.readme:
-        update_readme(doc, ROOT / "README.md")
+    if args.docs:
+        update_docs(doc, ROOT / "docs" / "performance.md")
     progress(
         f"wrote {out / 'RESULTS.md'}, results.json"
         + (", scaling.png" if plotted else "")
-        + (", README.md" if args.readme else "")
+        + (", docs/performance.md" if args.docs else "")
     )
     bad = [k for k, s in sections.items() if s["status"] == "failed"]
     return 1 if bad and len(bad) == len([s for s in sections.values() if s["status"] != "skipped"]) else 0

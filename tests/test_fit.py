@@ -228,6 +228,8 @@ def test_cli_fit_writes_fit_json_and_simulate_accepts_it(tmp_path, datasets_dir,
     assert doc["data"]["sha256"] == sj.file_sha256(data)
     assert doc["data"]["input_column"] == "voltage_V" and doc["data"]["sample_time_s"] == pytest.approx(1.5)
     assert doc["model"]["type"] == "EUPI" and "versions" in doc and "settings" in doc
+    # without --early-stopping the refinement runs whole: no early-stopping entry (tests/test_early_stopping.py: with it)
+    assert doc["settings"]["early_stopping"] is False and doc["solver"]["early_stopping"] is None
     # errors in units of the output noise estimated from the data; a note (printed as a warning) above 2x on training
     noise = doc["metrics"]["noise"]
     assert noise["train_ratio"] == pytest.approx(doc["metrics"]["train"]["rmse"] / noise["sd"], rel=1e-12)
