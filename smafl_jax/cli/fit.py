@@ -38,9 +38,9 @@ def add_parser(sub):
         choices=MODELS,
         default="auto",
         help="auto (every hysteresis class fitted and the lower validation RMSE kept: behind the thermal lag for a drive "
-        "voltage (cascade, cascade-preisach), on the input itself for any other input (eupi, preisach); thresholds and "
+        "voltage (cascade, cascade-preisach, cascade-preisach-gauss), on the input itself for any other input (eupi, preisach, preisach-gauss); thresholds and "
         "tilts trained), eupi (paper eq. 2), cascade (thermal + EUPI), cascade-NAME (thermal + another registered "
-        "hysteresis model), joule (eq. 7 lag), or any other registered hysteresis model (preisach); default auto",
+        "hysteresis model), joule (eq. 7 lag), or any other registered hysteresis model (preisach, preisach-gauss); default auto",
     )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
     p.add_argument(
@@ -110,7 +110,7 @@ def add_parser(sub):
         action="store_true",
         help="stop the split fit's joint refinement when 2 chunks of 50 steps in a row do not lower the validation error, "
         "and keep its best iterate (one record; off by default: on fresh independent records it helped --model auto and "
-        "cut the fit time by about a sixth, but made some single-class fits worse; README, session 23)",
+        "cut the fit time by about a sixth, but made some single-class fits worse; docs/identification.md, session 23)",
     )
     p.add_argument(
         "--median",
@@ -118,7 +118,7 @@ def add_parser(sub):
         help="with --model auto on one record: also write median_fit.json, the sample-by-sample median of every class "
         "compared, each refitted on the whole record (one refit more per class; on 60 independent records it held out "
         "0.88x the geometric-mean error of the class the validation block keeps, but not on every kind of record; "
-        "README, session 28)",
+        "docs/identification.md, session 28)",
     )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")
