@@ -91,6 +91,23 @@ def test_auto_structure_from_the_input():
     assert auto_structure(rec)[0] == "cascade"
     rec = dataclasses.replace(rec, input_name="temperature_C")
     assert auto_structure(rec)[0] == "eupi"
+    # the symbol of the paper and of control engineers: a drive voltage too
+    assert auto_structure(dataclasses.replace(rec, input_name="U"))[0] == "cascade"
+    # not named as a voltage: static, and the reason says how to declare one
+    structure, why = auto_structure(dataclasses.replace(rec, input_name="x_in"))
+    assert structure == "eupi" and "--model cascade" in why and '"units"' in why
+
+
+def test_a_measured_voltage_with_noise_below_zero_is_still_a_drive():
+    """ADC noise around an off drive reads a few mV below 0: still Joule heating (U^2), with a note; a voltage that goes
+    well below 0 (a bipolar signal) is not read as a drive."""
+    u = np.r_[np.zeros(20), np.full(20, 6.0)] + np.r_[np.full(20, -0.011), np.zeros(20)]
+    rec = sj.Record(time=np.arange(40.0), u=u, y=np.zeros(40), dt=1.0, input_name="voltage_V", output_name="y")
+    structure, why = auto_structure(rec)
+    assert structure == "cascade" and "20 samples below 0 V" in why and "-0.011" in why
+    bipolar = dataclasses.replace(rec, u=u - 3.0)
+    structure, why = auto_structure(bipolar)
+    assert structure == "eupi" and "goes down to -3" in why
 
 
 # suite time: the displacement case (24 s) is slow; the length sensor, the harder one, stays in the default suite

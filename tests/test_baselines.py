@@ -41,11 +41,36 @@ def test_static_poly_matches_numpy_polyfit_on_training_samples(rng):
     y_bad[~train] += 100.0  # held-out samples must not enter the fit
     sp = fit_static_poly([(u, y_bad, 0.1)], [train])
     ref = np.polynomial.polynomial.Polynomial.fit(u[train], y[train], 3)
-    np.testing.assert_allclose(sp.predict(u), ref(u), rtol=1e-9, atol=1e-9)
-    m = score(sp, [(u, y, 0.1)], [~train])
-    err = y[~train] - ref(u[~train])
+    inside = (u >= u[train].min()) & (u <= u[train].max())  # outside it the cubic continues linearly (next test)
+    np.testing.assert_allclose(sp.predict(u[inside]), ref(u[inside]), rtol=1e-9, atol=1e-9)
+    held = ~train & inside
+    m = score(sp, [(u, y, 0.1)], [held])
+    err = y[held] - ref(u[held])
     assert m["rmse"] == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-8)
-    assert m["e_r_percent"] == pytest.approx(np.max(np.abs(err)) / np.ptp(y[~train]) * 100, rel=1e-8)
+    assert m["e_r_percent"] == pytest.approx(np.max(np.abs(err)) / np.ptp(y[held]) * 100, rel=1e-8)
+
+
+def test_polynomials_continue_linearly_outside_the_training_range(rng):
+    """Beyond the trained input (or lag state) range a baseline's cubic goes on with its end value and slope, so a new
+    run that leaves the range meets a straight line, not a cubic blow-up (a held-out lag state out of range predicted
+    20 mm on a 4 mm stroke)."""
+    u = rng.uniform(0.0, 2.0, 200)
+    y = 1.0 + u - 0.8 * u**3 + 0.01 * rng.standard_normal(200)
+    sp = fit_static_poly([(u, y, 0.1)])
+    ref = np.polynomial.polynomial.Polynomial.fit(u, y, 3)
+    lo, hi = float(u.min()), float(u.max())
+    slope_hi, slope_lo = ref.deriv()(hi), ref.deriv()(lo)
+    out = np.array([hi + 0.5, hi + 3.0, lo - 1.0])
+    want = np.array([ref(hi) + 0.5 * slope_hi, ref(hi) + 3.0 * slope_hi, ref(lo) - 1.0 * slope_lo])
+    np.testing.assert_allclose(sp.predict(out), want, rtol=1e-9, atol=1e-9)
+    lag = fit_lag_poly([(u, y, 0.1)])
+    x = lag.state(3.0 * u, 0.1)  # a drive three times the trained one: the state leaves the trained range
+    assert x.max() > lag.hi
+    p = lag.predict(3.0 * u, 0.1)
+    above = x > lag.hi
+    step = np.polynomial.polynomial.Polynomial(lag.coef)  # in the scaled coordinate z
+    half = 0.5 * (lag.hi - lag.lo)
+    np.testing.assert_allclose(p[above], step(1.0) + step.deriv()(1.0) * (x[above] - lag.hi) / half, rtol=1e-9)
 
 
 @pytest.mark.parametrize("squared", [False, True])
@@ -104,6 +129,11 @@ def test_baselines_doc_and_verdict(rng):
 
 def test_voltage_detection_and_bad_input():
     assert is_voltage("voltage_V") and is_voltage("drive", {"drive": "V"}) and not is_voltage("temperature_front_C")
+    # the symbols users give a drive voltage, and what must not count as one
+    for name in ("U", "u", "V", "v_in", "Vset", "U_drive", "Spannung [V]", "drive (V)", "supply_volts"):
+        assert is_voltage(name), name
+    for name in ("x", "pressure", "displacement_mm", "tension_N", "velocity", "input", "uv", "level"):
+        assert not is_voltage(name), name
     with pytest.raises(UserInputError, match="weight arrays"):
         fit_static_poly([(np.arange(5.0), np.arange(5.0), 1.0)], [None, None])
     with pytest.raises(UserInputError, match="no training samples"):

@@ -257,7 +257,7 @@ def test_cli_fit_bad_inputs_exit_2(tmp_path, datasets_dir, capsys):
     sj.atomic_write_csv(neg, {"time_s": t, "voltage_V": np.sin(t), "displacement_mm": np.cos(t)})
     assert cli_main(["fit", str(neg), "--model", "cascade", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
-    assert "Traceback" not in err and "drive voltage >= 0" in err
+    assert "Traceback" not in err and "drive voltage >= 0" in err and "goes down to -0.99" in err
 
 
 @pytest.mark.slow

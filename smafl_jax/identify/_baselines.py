@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 
@@ -58,11 +59,29 @@ LAG_GRID = 41
 TIE_RATIO = 0.95
 
 
+#: Units (sidecar ``units``, or in brackets after the column name) that make an input a drive voltage.
+VOLTAGE_UNITS = ("v", "volt", "volts")
+#: Whole column names that mean a drive voltage: the symbols of the paper (U) and of control engineers (u, v, V), with
+#: the usual suffixes (U_in, Vset, v_drive, ...).  A new-user trial named the column ``U``: the record then got a static
+#: model and held out at 175x the noise instead of 5x.
+_VOLTAGE_NAME = re.compile(r"^[uv][ _-]?(in|set|drive|d|s|app|applied|cmd|command|supply|sup)?$")
+#: Words in a column name that mean a drive voltage (English, German).
+_VOLTAGE_WORDS = ("volt", "spannung")  # not "tension": a force in a muscle rig
+
+
 def is_voltage(input_name: str | None, units: dict | None = None) -> bool:
-    """A drive voltage (name or unit says volt): the lag baseline then filters ``u^2`` (Joule heating)."""
-    name = (input_name or "").lower()
+    """A drive voltage, by its column name or unit (``voltage_V``, ``Spannung [V]``, ``U``, ``v_in``, sidecar unit V).
+
+    Why it matters: `auto_structure` puts a drive voltage behind the Joule thermal lag, and the lag baseline filters
+    ``u^2``; any other input drives the hysteresis directly."""
+    name = (input_name or "").strip().lower()
     unit = str((units or {}).get(input_name, "")).strip().lower()
-    return "volt" in name or name.endswith("_v") or unit in ("v", "volt", "volts")
+    if unit in VOLTAGE_UNITS or any(w in name for w in _VOLTAGE_WORDS):
+        return True
+    bracket = re.search(r"[\[(]\s*([a-z]+)\s*[\])]\s*$", name)  # "drive [V]", "u (V)"
+    if bracket and bracket.group(1) in VOLTAGE_UNITS:
+        return True
+    return name.endswith(("_v", "/v", " v")) or bool(_VOLTAGE_NAME.match(name))
 
 
 def _triples(data) -> list[tuple[np.ndarray, np.ndarray | None, float]]:
@@ -104,6 +123,24 @@ def _vander(x: np.ndarray, lo: float, hi: float, order: int) -> np.ndarray:
     return np.vander(z, order + 1, increasing=True)
 
 
+def _poly(x: np.ndarray, lo: float, hi: float, coef: np.ndarray) -> np.ndarray:
+    """The polynomial on the training range ``[lo, hi]``, continued outside it by its end value and slope.
+
+    Why: a cubic evaluated beyond its training range is not a baseline a practitioner would keep; in a new-user trial the
+    lag baseline's held-out record left the trained state range and the cubic predicted 20 mm on a 4 mm stroke, so
+    "the model beats the baseline" said nothing.  Inside the range nothing changes (the EUPI's polynomial does the same,
+    `models._eupi.poly_columns`)."""
+    x = np.asarray(x, dtype=np.float64)
+    xc = np.clip(x, lo, hi)
+    half = 0.5 * (hi - lo)
+    scale = half if half > 0 else 1.0
+    value = _vander(xc, lo, hi, len(coef) - 1) @ coef
+    zc = (xc - 0.5 * (hi + lo)) / scale
+    k = np.arange(1, len(coef))
+    slope = (np.power.outer(zc, k - 1) * k) @ coef[1:] if len(coef) > 1 else np.zeros_like(zc)
+    return value + slope * (x - xc) / scale
+
+
 def _lstsq(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     # minimum-norm solution: a constant training input gives a rank-deficient basis, not an error
     return np.linalg.lstsq(A, b, rcond=None)[0]
@@ -118,14 +155,15 @@ def _lag(s: np.ndarray, a: float) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class StaticPoly:
-    """``y = sum_k coef[k] z^k``, ``z`` the input scaled by the training range ``[lo, hi]`` to [-1, 1]."""
+    """``y = sum_k coef[k] z^k``, ``z`` the input scaled by the training range ``[lo, hi]`` to [-1, 1] (continued linearly
+    outside it, `_poly`)."""
 
     coef: np.ndarray
     lo: float
     hi: float
 
     def predict(self, u, dt: float | None = None) -> np.ndarray:
-        return _vander(np.asarray(u, dtype=np.float64), self.lo, self.hi, len(self.coef) - 1) @ self.coef
+        return _poly(u, self.lo, self.hi, self.coef)
 
     def params(self) -> dict:
         return {"order": len(self.coef) - 1, "coef_scaled": [float(c) for c in self.coef], "input_range": [self.lo, self.hi]}
@@ -147,7 +185,7 @@ class LagPoly:
         return _lag(u * u if self.squared else u, math.exp(-float(dt) / self.tau))
 
     def predict(self, u, dt: float) -> np.ndarray:
-        return _vander(self.state(u, dt), self.lo, self.hi, len(self.coef) - 1) @ self.coef
+        return _poly(self.state(u, dt), self.lo, self.hi, self.coef)
 
     def params(self) -> dict:
         return {

@@ -36,6 +36,7 @@ from .._compile_cache import release_if_needed
 from .._errors import UserInputError
 from .._progress import say as progress_line
 from ..models._hysteresis import hysteresis_of, record_model, thermal_of
+from ._baselines import is_voltage
 from ._fit import _as_weights, as_fit_data, fit
 
 __all__ = [
@@ -54,7 +55,6 @@ __all__ = [
 #: refinement fits ``u0`` through a softplus, whose gradient vanishes at 0 (a start there could never warm up).
 COLD_FRACTION = 0.05
 
-_VOLTAGE_UNITS = ("v", "volt", "volts")
 #: Start candidates of the screening besides "steady": initial effective voltage as a fraction of the input maximum.
 START_FRACTIONS = (COLD_FRACTION, 0.35, 0.65, 0.95)
 
@@ -141,14 +141,38 @@ def _start_fraction(th):
 
 
 def _is_voltage(record) -> bool:
-    name = (record.input_name or "").lower()
-    unit = str(dict(getattr(record, "units", {}) or {}).get(record.input_name, "")).strip().lower()
-    return "volt" in name or name.endswith("_v") or unit in _VOLTAGE_UNITS
+    return is_voltage(record.input_name, dict(getattr(record, "units", {}) or {}))
+
+
+#: A drive voltage may dip this far below 0 (fraction of its maximum) and still count as a Joule drive: a measured
+#: voltage carries ADC noise around 0 V when the drive is off.  A new-user trial's record with N(0, 4 mV) on the voltage
+#: (minimum -0.011 V) lost its thermal lag and held out at 171x the noise instead of 5x; Joule heat goes with U^2, so a
+#: small negative reading heats as little as the same positive one.
+NEGATIVE_DRIVE_TOLERANCE = 0.05
+
+
+def negative_drive_excess(u) -> float:
+    """How far the input goes below ``-NEGATIVE_DRIVE_TOLERANCE x max(u)`` (0 when it does not)."""
+    u = np.asarray(u, dtype=np.float64)
+    floor = -NEGATIVE_DRIVE_TOLERANCE * max(float(np.max(u)), 0.0)
+    return max(0.0, floor - float(np.min(u)))
 
 
 def drives_joule_heating(record) -> bool:
-    """Is the record's input a drive voltage >= 0 (which heats the actuator through a thermal lag)?"""
-    return _is_voltage(record) and float(np.min(record.u)) >= 0
+    """Is the record's input a drive voltage >= 0 (which heats the actuator through a thermal lag)?  Readings slightly
+    below 0 (within `NEGATIVE_DRIVE_TOLERANCE` of the maximum: sensor noise around an off drive) count as >= 0."""
+    return _is_voltage(record) and float(np.max(record.u)) > 0 and negative_drive_excess(record.u) == 0.0
+
+
+def _below_zero(record) -> str:
+    u = np.asarray(record.u)
+    n = int(np.sum(u < 0))
+    if not n:
+        return ""
+    return (
+        f" ({n} samples below 0 V, down to {float(u.min()):.3g} V, within {NEGATIVE_DRIVE_TOLERANCE:.0%} of the maximum: "
+        "read as noise on an off drive; the Joule heat goes with U^2)"
+    )
 
 
 def auto_structure(record):
@@ -159,10 +183,20 @@ def auto_structure(record):
     """
     voltage = _is_voltage(record)
     if drives_joule_heating(record):
-        return "cascade", f"input '{record.input_name}' is a drive voltage >= 0: Joule heating -> thermal lag -> hysteresis"
+        return "cascade", (
+            f"input '{record.input_name}' is a drive voltage >= 0: Joule heating -> thermal lag -> hysteresis"
+            + _below_zero(record)
+        )
     if voltage:
-        return "eupi", f"input '{record.input_name}' is a voltage but goes below 0; Joule heating needs U >= 0, so static EUPI"
-    return "eupi", f"input '{record.input_name}' is not a drive voltage: the hysteresis sees it directly (static EUPI)"
+        return "eupi", (
+            f"input '{record.input_name}' is a voltage but goes down to {float(np.min(record.u)):.3g} V, more than "
+            f"{NEGATIVE_DRIVE_TOLERANCE:.0%} of its maximum below 0; Joule heating needs U >= 0, so static EUPI"
+        )
+    return "eupi", (
+        f"input '{record.input_name}' is not a drive voltage: the hysteresis sees it directly (static EUPI). If it is a "
+        "drive voltage, say so: --model cascade, a column name with 'volt' or ending in '_V', or the unit V in the sidecar "
+        '(NAME.json: {"units": {"' + str(record.input_name) + '": "V"}})'
+    )
 
 
 def auto_candidates(record):

@@ -22,11 +22,14 @@ from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
 from .._progress import say, shown, tagged
 from ..data.split import COVERAGE_WARN, branch_coverage
+from ..identify._baselines import is_voltage
 from ..identify._choose import (
+    NEGATIVE_DRIVE_TOLERANCE,
     auto_candidates,
     auto_structure,
     drives_joule_heating,
     fitted_memory_start,
+    negative_drive_excess,
     refine_thermal_start,
     screen_start,
     shared_screening,
@@ -91,14 +94,15 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
     grid = dict(n_sym=n_sym, n_alpha=n_alpha, n_asym=n_asym, poly_order=poly_order)
     if kind == "eupi":
         if u_ref == "auto":
-            ref = None if "volt" in record.input_name.lower() else u_min
+            ref = None if is_voltage(record.input_name, record.units) else u_min
         else:
             ref = {"zero": None, "min": u_min}[u_ref]
         return EUPI.from_range(u_min, u_max, u_ref=ref, **grid)
-    if (kind in ("cascade", "joule") or kind.startswith("cascade-")) and u_min < 0:
+    if (kind in ("cascade", "joule") or kind.startswith("cascade-")) and negative_drive_excess(u) > 0:
         raise UserInputError(
-            f"--model {kind} needs a drive voltage >= 0 as input (Joule heating goes with U^2); "
-            f"'{record.input_name}' goes down to {u_min:g}"
+            f"--model {kind} needs a drive voltage >= 0 as input (Joule heating goes with U^2; readings down to "
+            f"{NEGATIVE_DRIVE_TOLERANCE:.0%} of the maximum below 0 count as noise on an off drive); "
+            f"'{record.input_name}' goes down to {u_min:g} with a maximum of {u_max:g}"
         )
     if kind == "cascade":
         return Cascade.from_range(u_max, **grid)
