@@ -2,6 +2,7 @@
 baselines and data checks in fit reports, and the input-range warning of `smafl simulate`."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -120,6 +121,7 @@ def test_cli_fit_several_files_folder_and_glob(tmp_path, capsys):
     assert "## Leave-one-record-out" in report and "## Baselines" in report and "## Data checks" in report
     out = capsys.readouterr().out
     assert "leave-one-record-out mean" in out and "held out run1" in out
+    assert re.search(r"held out run1: rmse [0-9.e+-]+ \([0-9.e+-]+x noise\)", out)  # each held-out record in noise units
     assert cli_main(["fit", str(d / "run*.csv"), "--out", str(tmp_path / "o2"), "--split", "none"] + common) == 0
     assert json.loads((tmp_path / "o2" / "fit.json").read_text())["validation"]["folds"] == []
     # the simulate input-range check reads the joint model's training range

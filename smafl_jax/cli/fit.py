@@ -317,7 +317,8 @@ def _run_records(args, records, grid):
         for f in v["folds"]:
             m = f["model"]
             bl = ", ".join(f"{k} {b['rmse']:.4g}" for k, b in f["baselines"].items())
-            head = f"rmse {m['rmse']:.4g}, e_r {m['e_r_percent']:.3g} %" if m else "non-finite output"
+            ratio = f" ({m['rmse'] / noise['sd']:.3g}x noise)" if m and noise.get("sd") else ""
+            head = f"rmse {m['rmse']:.4g}{ratio}, e_r {m['e_r_percent']:.3g} %" if m else "non-finite output"
             print(f"  held out {f['record']}: {head} (baselines rmse: {bl})")
         mm = v["mean"]["model"]
         if mm:
