@@ -45,7 +45,7 @@ def test_select_other_columns(real_data):
     [
         ("", "file is empty"),
         ("time_s,voltage_V,displacement_mm\n", "no data rows"),
-        ("t,voltage_V,displacement_mm\n" + "0,1,2\n" * 12, "no time column 'time_s'"),
+        ("clock,voltage_V,displacement_mm\n" + "0,1,2\n" * 12, "no time column 'time_s'"),
         (good_csv().replace("0.4000,2.0,0.04", "0.4000,abc,0.04"), "column 'voltage_V', row 6: non-numeric value 'abc'"),
         (good_csv().replace("0.4000,2.0,0.04", "0.4000,2.0,nan"), "column 'displacement_mm', row 6: non-finite"),
         (good_csv().replace("0.4000,2.0,0.04", "0.4000,2.0,inf"), "column 'displacement_mm', row 6: non-finite"),

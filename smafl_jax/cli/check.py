@@ -16,6 +16,11 @@ from pathlib import Path
 
 #: Findings of one kind in one column of one record printed in full; the rest are counted.
 MAX_LINES_PER_GROUP = 5
+#: The --time option's help, shared by every command that reads records.
+TIME_HELP = (
+    'time column (default: the sidecar\'s "time", else time_s, else the one column named like time, t or timestamp); '
+    "a unit ms or us in its name ('time [ms]', 't_ms') or in the sidecar's units is converted to seconds"
+)
 
 
 def add_parser(sub):
@@ -23,7 +28,7 @@ def add_parser(sub):
     p.add_argument("data", nargs="+", help="CSV files, folders (their *.csv) or glob patterns; one column choice for all")
     p.add_argument("--input", default=None, help="input column (default: the sidecar's, else a common name)")
     p.add_argument("--output", default=None, help="output column (default: the sidecar's, else a common name)")
-    p.add_argument("--time", default="time_s", help="time column (default: time_s)")
+    p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
     p.add_argument(
         "--resample",
         default=None,
@@ -76,7 +81,7 @@ def run(args):
     print()
     for (name, kind, column), fs in groups.items():
         rec = by_name.get(name)
-        unit = "s" if column == args.time else (rec.units.get(column, "") if rec is not None else "")
+        unit = "s" if column == "time_s" else (rec.units.get(column, "") if rec is not None else "")
         for f in fs[:MAX_LINES_PER_GROUP]:
             print(f.line(unit))
         if len(fs) > MAX_LINES_PER_GROUP:

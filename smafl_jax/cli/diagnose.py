@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from .check import TIME_HELP
+
 
 def add_parser(sub):
     p = sub.add_parser("diagnose", help="fit the base model, study its residuals, attribute and fit missing physical effects")
@@ -16,6 +18,7 @@ def add_parser(sub):
     )
     p.add_argument("--input", default=None, help="input column (default: sidecar, then a common name)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, then a common name)")
+    p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
     p.add_argument(
         "--out",
         required=True,
@@ -96,7 +99,7 @@ def run(args):
     from ..data import load_records
     from ..diagnosis._diagnose import check_record, diagnose
 
-    records = load_records(args.data, input=args.input, output=args.output)
+    records = load_records(args.data, input=args.input, output=args.output, time=args.time)
     for rec in records:
         check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)

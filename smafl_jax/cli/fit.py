@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from .._choices import GAIN_PRIOR
+from .check import TIME_HELP
 
 
 def add_parser(sub):
@@ -33,6 +34,7 @@ def add_parser(sub):
     )
     p.add_argument("--input", default=None, help="input column (default: sidecar, else a common name such as voltage_V)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, else e.g. displacement_mm)")
+    p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
     p.add_argument(
         "--model",
         choices=MODELS,
@@ -144,7 +146,7 @@ def run(args):
             raise UserInputError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
     if args.poly_order < 1:
         raise UserInputError(f"--poly-order must be >= 1, got {args.poly_order}")
-    records = load_records(args.data, args.input, args.output, resample=parse_resample(args.resample))
+    records = load_records(args.data, args.input, args.output, time=args.time, resample=parse_resample(args.resample))
     note = _accelerator_note()
     if note:
         print(note, file=sys.stderr)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import sys
 
 from ._lines import workflow_lines_on_stderr
+from .check import TIME_HELP
 
 
 def add_parser(sub):
@@ -56,6 +57,7 @@ def add_parser(sub):
     )
     p.add_argument("--input", default=None, help="input column (default: the fit's)")
     p.add_argument("--output", default=None, help="output column (default: the fit's)")
+    p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
     p.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive bands (default 200)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--restart", action="store_true", help="discard an existing chain in DIR instead of resuming it")
@@ -99,6 +101,7 @@ def run(args):
             holdout_fraction=args.holdout_fraction,
             input=args.input,
             output=args.output,
+            time=args.time,
             draws=args.draws,
             seed=args.seed,
             restart=args.restart,

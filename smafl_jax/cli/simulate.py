@@ -17,15 +17,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from .check import TIME_HELP
 from .control import OPTION_NAMES, workflow_lines_on_stderr
 
 
 def add_parser(sub):
     p = sub.add_parser("simulate", help="run a saved model (model file or fit.json) on an input record")
     p.add_argument("params", help="model JSON: a saved model file or the fit.json written by `smafl fit`")
-    p.add_argument("input_csv", help="CSV with a time_s column and the input column")
+    p.add_argument("input_csv", help="CSV with a time column (time_s, or see --time) and the input column")
     p.add_argument("--out", required=True, help="output CSV (time_s, input, simulated output)")
     p.add_argument("--input", default=None, help="input column (default: the fit's input column, else a common name)")
+    p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
     p.add_argument("--output-name", default=None, help="name of the simulated column (default: <fit output>_model)")
     p.add_argument(
         "--measured",
@@ -84,6 +86,7 @@ def run(args):
             out=args.out,
             metrics_file=args.metrics,
             input=args.input,
+            time=args.time,
             output_name=args.output_name,
             measured=args.measured,
             resample=args.resample,

@@ -30,7 +30,7 @@ def load_record(
     input: str | None = None,
     output: str | None = None,
     *,
-    time: str = "time_s",
+    time: str | None = None,
     require_output: bool = True,
     min_samples: int = 10,
     dt_rtol: float = DEFAULT_DT_RTOL,

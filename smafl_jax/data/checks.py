@@ -70,6 +70,14 @@ Detectors on one record (`check_record`):
   listed on its own: ``cut`` when the record on one side of it is under
   ``CUT_SIDE`` (10 %) of the record, else ``mark``.
 
+- ``sample_time`` (plausibility, the one rule in physical units): a sample
+  time above ``SLOW_DT_S`` (5 s) on a record of more than ``SLOW_MIN_SAMPLES``
+  (1000) samples driven by a voltage (thermal time constants of seconds, so a
+  logger samples in ms): most likely millisecond stamps in a column read as
+  seconds, and a fit then finds every rate 1000x too slow.  Action: ``check``.
+  (A slow clock on a short record, such as the 642-sample SMA wing record at
+  10 s, is not flagged.)
+
 Across records (`check_records`):
 
 - ``level_mismatch``: in 5 equal bins of the input band all records share
@@ -83,8 +91,11 @@ Across records (`check_records`):
   outside the others' band (0.5..99.5 percentiles, widened by 2 % of its span),
   or its span is under ``RANGE_SPAN`` (half) the others' median span: a model
   trained on the others extrapolates there.  Action: ``check``.
-- ``dt_mismatch`` (sample time off the median record's by more than
-  ``dt_rtol``: ``resample``) and ``duplicate`` (same file content: ``drop``).
+- ``dt_mismatch`` (``resample``): sample times are grouped (within
+  ``dt_rtol``); when one group holds more than half of the records, each record
+  outside it is flagged against that group's sample time (one a record has);
+  otherwise every record is flagged, with the list of sample times.
+- ``duplicate`` (same file content: ``drop``).
 
 Actions: ``cut`` (remove samples at the start or end), ``drop`` (leave the
 record out), ``mark`` (keep simulating through them, leave them out of the
@@ -103,6 +114,7 @@ import math
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from .names import is_voltage
 from .record import DEFAULT_DT_RTOL, Record
 
 __all__ = ["Finding", "check_record", "check_records", "ACTIONS"]
@@ -133,6 +145,8 @@ LEVEL_BINS = 5
 RANGE_OUT = 0.1
 RANGE_SPAN = 0.5
 RANGE_TOL = 0.02
+SLOW_DT_S = 5.0
+SLOW_MIN_SAMPLES = 1000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -558,9 +572,33 @@ def _sampling(rec: Record, dt_rtol: float) -> list[Finding]:
     return out
 
 
+def _slow_clock(rec: Record) -> list[Finding]:
+    """A long drive-voltage record sampled slower than `SLOW_DT_S`: millisecond stamps read as seconds?"""
+    n = len(rec)
+    if not (rec.dt > SLOW_DT_S and n > SLOW_MIN_SAMPLES and is_voltage(rec.input_name, rec.units)):
+        return []
+    col = getattr(rec, "time_name", "time_s")
+    hours = (float(rec.time[-1]) - float(rec.time[0])) / 3600
+    return [
+        _finding(
+            rec,
+            "sample_time",
+            "time_s",
+            0,
+            n,
+            float(rec.dt),
+            math.nan,
+            f"sample time {rec.dt:.6g} s over {n} samples ({hours:.3g} h) for a drive voltage, whose thermal time constants "
+            f"are seconds: is '{col}' in milliseconds? If so, say so (a column named time_ms or 'time [ms]', or the "
+            f'sidecar\'s "units": {{"{col}": "ms"}}) and load again; read as seconds, a fit finds every rate 1000x too slow',
+            "check",
+        )
+    ]
+
+
 def check_record(record: Record, *, dt_rtol: float = DEFAULT_DT_RTOL) -> list[Finding]:
     """Findings for one record, in time order (detectors and rules in the module docstring)."""
-    out = _sampling(record, dt_rtol)
+    out = _slow_clock(record) + _sampling(record, dt_rtol)
     constant = [
         (c, x) for c, x in ((record.input_name, record.u), (record.output_name, record.y)) if x is not None and np.ptp(x) == 0
     ]
@@ -686,24 +724,61 @@ def _input_ranges(recs: list[Record]) -> list[Finding]:
     return out
 
 
+def _dt_groups(dts: list[float], dt_rtol: float) -> list[list[int]]:
+    """Record indices grouped by sample time: sorted, a new group when a time is off its group's first by > ``dt_rtol``."""
+    groups: list[list[int]] = []
+    for i in np.argsort(dts, kind="stable"):
+        if groups and abs(dts[i] - dts[groups[-1][0]]) <= dt_rtol * dts[groups[-1][0]]:
+            groups[-1].append(int(i))
+        else:
+            groups.append([int(i)])
+    return groups
+
+
 def _sample_times(recs: list[Record], dt_rtol: float) -> list[Finding]:
     out = []
-    med = float(np.median([r.dt for r in recs]))
-    for r in recs:
-        if abs(r.dt - med) > dt_rtol * med:
-            out.append(
-                _finding(
-                    r,
-                    "dt_mismatch",
-                    "time_s",
-                    0,
-                    len(r),
-                    r.dt - med,
-                    math.nan,
-                    f"sample time {r.dt:.6g} s vs {med:.6g} s in most records; resample to {med:.6g} s if the model needs one grid",
-                    "resample",
-                )
+    dts = [float(r.dt) for r in recs]
+    groups = _dt_groups(dts, dt_rtol)
+    if len(groups) > 1:
+        most = max(groups, key=len)
+        if 2 * len(most) > len(recs):
+            # the group's middle sample time, one a record has (the median of an even count would be none of them)
+            ref = sorted(dts[i] for i in most)[(len(most) - 1) // 2]
+            for i, r in enumerate(recs):
+                if i not in most:
+                    out.append(
+                        _finding(
+                            r,
+                            "dt_mismatch",
+                            "time_s",
+                            0,
+                            len(r),
+                            r.dt - ref,
+                            math.nan,
+                            f"sample time {r.dt:.6g} s vs {ref:.6g} s in {len(most)} of the {len(recs)} records; resample to "
+                            f"{ref:.6g} s if the model needs one grid",
+                            "resample",
+                        )
+                    )
+        else:
+            listed = ", ".join(f"{r.name} {r.dt:.6g} s" for r in recs[:8]) + (
+                f" and {len(recs) - 8} more" if len(recs) > 8 else ""
             )
+            for r in recs:
+                out.append(
+                    _finding(
+                        r,
+                        "dt_mismatch",
+                        "time_s",
+                        0,
+                        len(r),
+                        math.nan,
+                        math.nan,
+                        f"sample time {r.dt:.6g} s: the records have different sample times and no one is shared by most "
+                        f"({listed}); if the model needs one grid, resample them to one of these (--resample DT)",
+                        "resample",
+                    )
+                )
     seen = {}
     for r in recs:
         key = r.sha256 or None

@@ -4,10 +4,19 @@ A record file is a CSV with a header row: a time column (``time_s``), an input
 column and an output column; other numeric columns are kept in ``Record.extra``
 (ambient temperature, load, branch labels...).  A sidecar ``NAME.json`` beside
 ``NAME.csv`` may give ``units`` (column -> unit), ``description``, default
-``input`` / ``output`` column names and a per-record ``load`` (a number).
+``time`` / ``input`` / ``output`` column names and a per-record ``load`` (a number).
 
 Reading rules (each documented, nothing changed silently):
 
+- Leading lines starting with ``#`` (a logger's header) are skipped and counted.
+- Time column: ``time`` (``--time COL``), else the sidecar's ``"time"``, else
+  ``time_s``, else the one column whose name, lower-cased with its unit split
+  off (``time [ms]``, ``time (s)``, ``t_ms``, ``Zeit [s]``), is one of
+  `TIME_NAMES` with a unit of `TIME_UNITS` or none (a single upper-case ``T``
+  is a temperature, not a time).  Its unit is the sidecar's ``units[COL]``,
+  else the one in its name, else seconds; ms, us, min and h are converted to
+  seconds.  Two candidates are an error listing both; ``processing`` says which
+  column was read in which unit whenever it is not ``time_s`` in seconds.
 - Encoding: UTF-8, a byte-order mark (Excel) is stripped; files that are not
   UTF-8 are read as cp1252 (Windows Excel) and ``Record.processing`` says so;
   a file with NUL bytes is refused as binary (an ``.xlsx``?).
@@ -18,9 +27,16 @@ Reading rules (each documented, nothing changed silently):
   pasted blob) raises `DataError` with the line, not ``_csv.Error``.
 - Non-numeric or empty cells in the time, input or output column raise
   `DataError` naming line and column; NaN/inf there likewise (all offending
-  lines listed, up to 5).  Other columns that are not numeric are left out of
-  ``extra`` and ``processing`` says so.
+  lines listed, up to 5).  An *optional* output (``require_output=False``, the
+  measured column `smafl simulate` scores against) may have empty, NaN or
+  infinite cells (`MISSING`): they are kept as NaN and ``processing`` counts
+  them (a text cell there leaves it out, as any text column).  Other
+  columns that are not numeric are left out of ``extra`` and ``processing``
+  says so.
 - Time stamps must increase strictly (duplicates and reversals name the line).
+  With ``resample``, rows that repeat the row before in every cell (a logger
+  writing a sample twice) are dropped and counted; a repeated time stamp with
+  other values is an error either way (which row is right cannot be told).
 - Irregular sampling (a step off the median step by more than ``dt_rtol``) is
   refused with the gap and the fix, unless ``resample=DT`` is given: the record
   is then interpolated linearly onto ``t0 + k DT`` (integer-valued extra columns
@@ -43,15 +59,26 @@ import hashlib
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 
 from smafl_jax._errors import DataError, UserInputError
 
+from .names import is_voltage
 from .record import DEFAULT_DT_RTOL, Record, check_time
 
-__all__ = ["load_record", "load_records", "file_sha256", "resample_record", "INPUT_CANDIDATES", "OUTPUT_CANDIDATES"]
+__all__ = [
+    "load_record",
+    "load_records",
+    "file_sha256",
+    "resample_record",
+    "INPUT_CANDIDATES",
+    "OUTPUT_CANDIDATES",
+    "TIME_NAMES",
+    "TIME_UNITS",
+]
 
 #: Column names taken as the input / output without --input / --output, first match wins (a drive voltage before a
 #: directly measured input, so a file that also logs a temperature is still fitted from its voltage).
@@ -61,6 +88,48 @@ DELIMITERS = (",", ";", "\t")
 _DELIM_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Gaps at least this many sample times long are listed one by one in ``processing``.
 LONG_GAP_STEPS = 10
+#: The default time column; without it, a column named like one of `TIME_NAMES` (unit split off) is the time.
+TIME_COLUMN = "time_s"
+#: Names of a time column once lower-cased and stripped of their unit (English, German, French, Spanish, Italian).
+TIME_NAMES = (
+    "time",
+    "t",
+    "zeit",
+    "timestamp",
+    "elapsed",
+    "elapsed time",
+    "elapsed_time",
+    "time_elapsed",
+    "temps",
+    "tiempo",
+    "tempo",
+)
+#: Units of a time column: (multiplier, divisor) to seconds.  Dividing by 1000 (not multiplying by 0.001) gives the
+#: correctly rounded seconds: "50" ms reads as exactly the float that "0.05" s does.
+TIME_UNITS = {
+    "s": (1, 1),
+    "sec": (1, 1),
+    "secs": (1, 1),
+    "second": (1, 1),
+    "seconds": (1, 1),
+    "ms": (1, 1000),
+    "msec": (1, 1000),
+    "millisecond": (1, 1000),
+    "milliseconds": (1, 1000),
+    "us": (1, 1_000_000),
+    "\u00b5s": (1, 1_000_000),
+    "\u03bcs": (1, 1_000_000),
+    "usec": (1, 1_000_000),
+    "microsecond": (1, 1_000_000),
+    "microseconds": (1, 1_000_000),
+    "min": (60, 1),
+    "h": (3600, 1),
+}
+_UNIT_WORDS = {1: "seconds", 1000: "milliseconds", 1_000_000: "microseconds", 60: "minutes", 3600: "hours"}
+#: A date or a clock time in a cell ("2026-11-29 10:00:00.050", "10:00:01"): not seconds.
+_DATE_TIME = re.compile(r"\d{1,4}[-./]\d{1,2}[-./]\d{1,4}|\d:\d\d")
+#: Cells of an optional output column read as "no measurement" (lower-cased, stripped).
+MISSING = ("", "nan", "na", "n/a", "null", "none")
 
 
 def file_sha256(path: str | os.PathLike) -> str:
@@ -83,6 +152,9 @@ def _read_sidecar(path: Path) -> dict:
         raise DataError(side, "sidecar must hold a JSON object")
     if not isinstance(meta.get("units", {}), dict):
         raise DataError(side, "'units' must be an object mapping column -> unit")
+    for key in ("time", "input", "output"):
+        if meta.get(key) is not None and not isinstance(meta[key], str):
+            raise DataError(side, f"'{key}' must be a column name (a string), got {meta[key]!r}")
     load = meta.get("load")
     if load is not None and (isinstance(load, bool) or not isinstance(load, (int, float)) or not math.isfinite(load)):
         raise DataError(side, f"'load' must be a finite number (its unit in units['load']), got {load!r}")
@@ -107,11 +179,13 @@ def _decode(path: Path, raw: bytes) -> tuple[str, list[str]]:
     return text, notes
 
 
-def _sniff_delimiter(path: Path, header_line: str) -> str:
+def _sniff_delimiter(path: Path, header_line: str, line_no: int = 1) -> str:
     counts = {d: header_line.count(d) for d in DELIMITERS}
     best = max(DELIMITERS, key=lambda d: counts[d])
     if counts[best] == 0:
-        raise DataError(path, f"cannot find a delimiter (comma, semicolon or tab) in the header line {header_line[:80]!r}", row=1)
+        raise DataError(
+            path, f"cannot find a delimiter (comma, semicolon or tab) in the header line {header_line[:80]!r}", row=line_no
+        )
     return best
 
 
@@ -157,15 +231,31 @@ def _first_bad_cell(cells: list[str], decimal_comma: bool) -> int:
     return -1
 
 
-def _pick(path, header, wanted, candidates, role, option):
+def _pick(path, header, wanted, candidates, role, option, *, taken=(), notes=None, like=None, like_why=""):
+    """The ``role`` column: ``wanted`` if named, else the first of ``candidates`` in the header, else the one column whose
+    name without its unit is a candidate (``voltage (V)``, ``displacement [mm]``), else the one column ``like`` accepts
+    (the input: a drive voltage by `names.is_voltage`, e.g. ``U`` or ``Spannung [V]``; the output: the only column left),
+    ``like_why`` saying why; a column picked by the last two rules is named in ``notes``."""
     if wanted is not None:
         if wanted not in header:
             raise DataError(path, f"no {role} column '{wanted}'; columns are {header}", column=wanted)
         return wanted
     found = [c for c in candidates if c in header]
-    if not found:
-        raise DataError(path, f"cannot tell which column is the {role}; choose one of {header} with {option} COLUMN")
-    return found[0]
+    if found:
+        return found[0]
+    free = [c for c in header if c not in taken]
+    for rule, why in (
+        (lambda c: split_unit(c)[0] in {k.lower() for k in candidates}, "its name without the unit"),
+        (like, like_why),
+    ):
+        hits = [c for c in free if rule is not None and rule(c)]
+        if len(hits) == 1:
+            if notes is not None:
+                notes.append(f"{role} column '{hits[0]}' (recognised by {why}; {option} COLUMN to choose another)")
+            return hits[0]
+        if len(hits) > 1:
+            raise DataError(path, f"several columns could be the {role}: {hits}; choose one with {option} COLUMN")
+    raise DataError(path, f"cannot tell which column is the {role}; choose one of {header} with {option} COLUMN")
 
 
 def _lines_text(lines) -> str:
@@ -174,12 +264,164 @@ def _lines_text(lines) -> str:
     return ", ".join(str(x) for x in lines[:5]) + more
 
 
+def split_unit(name: str) -> tuple[str, str | None]:
+    """``(base, unit)`` of a column name, lower-cased: ``"time [ms]"`` -> ``("time", "ms")``, ``"t_s"`` -> ``("t", "s")``.
+
+    A unit in brackets or parentheses at the end is split off whatever it is; one after ``_``, ``/`` or a space only
+    when it is a time unit (``elapsed_time`` stays whole).
+    """
+    n = name.strip().lower()
+    m = re.fullmatch(r"(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]", n)
+    if m:
+        return m.group(1).strip(), m.group(2)
+    m = re.fullmatch(r"(.+?)[_/ ]([^_/ ]+)", n)
+    if m and m.group(2) in TIME_UNITS:
+        return m.group(1).strip(), m.group(2)
+    return n, None
+
+
+def _looks_like_time(name: str) -> bool:
+    """A time column by its name: a time name with a time unit or none (``T`` alone is a temperature)."""
+    base, unit = split_unit(name)
+    if base not in TIME_NAMES or (unit is not None and unit not in TIME_UNITS):
+        return False
+    return not (base == "t" and name.strip()[:1] == "T")
+
+
+def _time_column(path: Path, header: list[str], wanted: str | None, meta: dict, taken: set) -> tuple[str, tuple, str | None]:
+    """The time column, its (multiplier, divisor) to seconds and a note saying how it was read (None: ``time_s`` in s)."""
+    side = meta.get("time")
+    if wanted is None and side is not None:
+        wanted = side
+    fix = 'choose the time column with --time COL (Python: time=COL; sidecar: "time": COL)'
+    if wanted is not None:
+        if wanted not in header:
+            raise DataError(path, f"no time column '{wanted}'; columns are {header}; {fix}", column=wanted)
+        col, how = wanted, "" if wanted == TIME_COLUMN else " (as chosen)"
+    elif TIME_COLUMN in header:
+        col, how = TIME_COLUMN, ""
+    else:
+        found = [h for h in header if h not in taken and _looks_like_time(h)]
+        if len(found) > 1:
+            raise DataError(path, f"several columns could be the time: {found}; {fix}")
+        if not found:
+            raise DataError(
+                path,
+                f"no time column '{TIME_COLUMN}' (nor one named like time, t or timestamp with a unit s, ms or us, such as "
+                f"'time [ms]' or 't_s'); columns are {header}; {fix} (a unit in its name or the sidecar's units, else seconds)",
+                column=TIME_COLUMN,
+            )
+        col, how = found[0], " (recognised by its name)"
+    unit_side = (meta.get("units") or {}).get(col)
+    if unit_side is not None:
+        unit, source = str(unit_side).strip().lower(), "the sidecar's units"
+        if unit not in TIME_UNITS:
+            raise DataError(
+                path.with_suffix(".json"),
+                f"units['{col}'] = {unit_side!r} is not a time unit (one of s, ms, us, min, h)",
+                column=col,
+            )
+    else:
+        unit, source = split_unit(col)[1], "its name"
+        if unit is not None and unit not in TIME_UNITS:
+            raise DataError(
+                path,
+                f"the unit '{unit}' in the time column's name is not a time unit (s, ms, us, min, h); give its unit in the "
+                f'sidecar\'s units ("units": {{"{col}": "ms"}})',
+                column=col,
+            )
+    scale = TIME_UNITS.get(unit, (1, 1)) if unit is not None else (1, 1)
+    if col == TIME_COLUMN and scale == (1, 1):
+        return col, scale, None
+    if unit is None:
+        return col, scale, f"time column '{col}'{how} has no unit in its name: read as seconds"
+    if scale == (1, 1):
+        return col, scale, f"time column '{col}'{how} read as seconds (unit from {source})"
+    word = _UNIT_WORDS[scale[0] * scale[1]]
+    return col, scale, f"time column '{col}'{how} read as {word} (unit from {source}) -> seconds"
+
+
+def _skip_comments(text: str) -> tuple[str, int]:
+    """``text`` with its leading ``#`` lines blanked (line numbers kept) and how many there were."""
+    lines = text.splitlines()
+    n = 0
+    for i, ln in enumerate(lines):
+        s = ln.strip()
+        if not s:
+            continue
+        if not s.startswith("#"):
+            break
+        lines[i] = ""
+        n += 1
+    return ("\n".join(lines), n) if n else (text, 0)
+
+
+def _optional_column(cells: list[str], decimal_comma: bool) -> tuple[np.ndarray | None, np.ndarray, int]:
+    """An optional output column: ``(values, missing indices, -1)`` with empty, NaN and infinite cells as NaN, or
+    ``(None, [], j)`` when cell ``j`` is not a number (the column is then left out, like any other text column)."""
+    missing = np.array([c.strip().lower() in MISSING for c in cells], bool)
+    filled = ["nan" if m else c for c, m in zip(cells, missing)]
+    x = _to_float(filled, decimal_comma)
+    if x is None:
+        return None, np.empty(0, int), _first_bad_cell(filled, decimal_comma)
+    gone = ~np.isfinite(x)  # "nan" and "inf" cells too: no measurement
+    x[gone] = np.nan
+    return x, np.flatnonzero(gone), -1
+
+
+def _same_row(body: list[list[str]], k: int, cols: dict, header: list[str]) -> list[str]:
+    """The columns in which row ``k`` differs from row ``k - 1`` (numbers compared as numbers, NaN equal to NaN)."""
+    differ = []
+    for i, h in enumerate(header):
+        if h in cols:
+            a, b = cols[h][k - 1], cols[h][k]
+            if not (a == b or (np.isnan(a) and np.isnan(b))):
+                differ.append(h)
+        elif body[k - 1][i].strip() != body[k][i].strip():
+            differ.append(h)
+    return differ
+
+
+def _duplicates(path, t, body, lines, cols, header, col, resample):
+    """Indices of exact duplicate rows to drop (``resample`` given) or `DataError` (module docstring)."""
+    dup = np.flatnonzero(np.diff(t) == 0) + 1
+    if not dup.size:
+        return dup
+    differ = {int(k): _same_row(body, int(k), cols, header) for k in dup}
+    other = [k for k in dup if differ[int(k)]]
+    exact = [k for k in dup if not differ[int(k)]]
+    if other:
+        k = int(other[0])
+        also = f", and {len(exact)} exact duplicate row{'s' if len(exact) != 1 else ''}" if exact else ""
+        raise DataError(
+            path,
+            f"duplicated time value {float(t[k]):g} with different values in {differ[k]} (lines {lines[k - 1]} and "
+            f"{lines[k]}; {len(other)} such repeated time stamp{'s' if len(other) != 1 else ''} in all{also}): which row is "
+            "right cannot be told from the file; delete one of the two rows, or replace them by one row with their average, "
+            "then load again",
+            column=col,
+            row=lines[k],
+        )
+    if resample is None:
+        k = int(exact[0])
+        raise DataError(
+            path,
+            f"duplicated time value {float(t[k]):g}: line {lines[k]} repeats line {lines[k - 1]} in every cell "
+            f"({len(exact)} exact duplicate row{'s' if len(exact) != 1 else ''} in all, lines {_lines_text([lines[j] for j in exact])}); "
+            "delete the repeated rows, or load with --resample auto (or DT; Python: resample=...), which drops exact "
+            "duplicate rows and reports it",
+            column=col,
+            row=lines[k],
+        )
+    return np.asarray(exact, int)
+
+
 def load_record(
     path: str | os.PathLike,
     input: str | None = None,
     output: str | None = None,
     *,
-    time: str = "time_s",
+    time: str | None = None,
     require_output: bool = True,
     min_samples: int = 10,
     dt_rtol: float = DEFAULT_DT_RTOL,
@@ -188,12 +430,19 @@ def load_record(
 ) -> Record:
     """Read and validate one record (rules in the module docstring).
 
-    ``input``/``output`` select columns (defaults: the sidecar's, then common
-    names).  ``resample``: a sample time in seconds, or ``"auto"`` (the median
-    step), to put irregular stamps on a uniform grid.  ``irregular="keep"``
+    ``input``/``output``/``time`` select columns (defaults: the sidecar's, then
+    common names; for the time ``time_s``, then a column named like a time).
+    ``require_output=False``: the output is optional (the measured column of a
+    simulation): read when named (``output``) and present, with empty, NaN or
+    infinite cells kept as NaN (counted in ``processing``); absent or not
+    numeric, ``y`` and ``output_name`` are None (``processing`` says why).
+    ``resample``: a sample time in seconds, or ``"auto"`` (the median
+    step), to put irregular stamps on a uniform grid (exact duplicate rows are
+    dropped first, and reported).  ``irregular="keep"``
     keeps irregular stamps as they are (``dt`` = median step) for `check_record`
     to report; models need a uniform grid, so fitting code leaves it at
-    ``"error"``.  ``row`` numbers in errors are file line numbers (header = 1).
+    ``"error"``.  ``row`` numbers in errors are file line numbers (the header's
+    is 1 unless comment lines come before it).
     """
     path = Path(path)
     if irregular not in ("error", "keep"):
@@ -205,50 +454,95 @@ def load_record(
     meta = _read_sidecar(path)
     raw = path.read_bytes()
     text, notes = _decode(path, raw)
-    first = next((ln for ln in text.splitlines() if ln.strip()), None)
+    text, n_comments = _skip_comments(text)
+    if n_comments:
+        notes.append(f"skipped {n_comments} comment line{'s' if n_comments > 1 else ''} (starting with '#') before the header")
+    first_no, first = next(((i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip()), (None, None))
     if first is None:
-        raise DataError(path, "file is empty")
-    delim = _sniff_delimiter(path, first)
+        raise DataError(path, "file holds only comment lines" if n_comments else "file is empty")
+    delim = _sniff_delimiter(path, first, first_no)
     decimal_comma = delim != ","
     rows, lines = _parse_rows(path, text, delim)
     header = [h.strip() for h in rows[0]]
+    head_line = lines[0]
     body, lines = rows[1:], lines[1:]
     # a trailing delimiter on every line (some exports) gives an unnamed, empty last column
     if header and header[-1] == "" and all(len(r) == len(header) and not r[-1].strip() for r in body):
         header, body = header[:-1], [r[:-1] for r in body]
         notes.append("empty unnamed last column (trailing delimiters) ignored")
     if "" in header:
-        raise DataError(path, f"empty column name at position {header.index('') + 1} of the header {header}", row=1)
+        raise DataError(path, f"empty column name at position {header.index('') + 1} of the header {header}", row=head_line)
     if len(set(header)) != len(header):
-        raise DataError(path, f"duplicated column names in header {header}", row=1)
+        raise DataError(path, f"duplicated column names in header {header}", row=head_line)
     if not body:
         raise DataError(path, "header only, no data rows")
-    if time not in header:
-        raise DataError(path, f"no time column '{time}'; columns are {header}", column=time)
-    in_col = _pick(path, header, input if input is not None else meta.get("input"), INPUT_CANDIDATES, "input", "--input")
+    named = {c for c in (input, output, meta.get("input"), meta.get("output")) if c is not None}
+    time, t_scale, t_note = _time_column(path, header, time, meta, named)
+    if t_note:
+        notes.append(t_note)
+    in_col = _pick(
+        path, header, input if input is not None else meta.get("input"), INPUT_CANDIDATES, "input", "--input",
+        taken={time, output, meta.get("output")} - {None}, notes=notes, like=is_voltage,
+        like_why="its name or unit, a voltage",
+    )  # fmt: skip
     out_col = None
-    if require_output or output is not None:
+    optional = None  # the optional output column: empty / NaN cells allowed
+    if require_output:
         out_col = _pick(
-            path, header, output if output is not None else meta.get("output"), OUTPUT_CANDIDATES, "output", "--output"
-        )
-        if out_col == in_col:
-            raise DataError(path, f"input and output are the same column '{in_col}'")
+            path, header, output if output is not None else meta.get("output"), OUTPUT_CANDIDATES, "output", "--output",
+            taken={time, in_col}, notes=notes, like=lambda c: len(header) == 3, like_why="being the only column left",
+        )  # fmt: skip
+    elif output is not None and output in header:
+        out_col = optional = output
+    if out_col is not None and out_col == in_col:
+        raise DataError(path, f"input and output are the same column '{in_col}'")
     if in_col == time or out_col == time:
         raise DataError(path, f"the time column '{time}' cannot also be the input or output")
     for row, line in zip(body, lines):
         if len(row) != len(header):
             raise DataError(path, f"expected {len(header)} cells, found {len(row)}", row=line)
-    required = [time, in_col] + ([out_col] if out_col else [])
+    required = [time, in_col] + ([out_col] if out_col and out_col != optional else [])
     cols: dict[str, np.ndarray] = {}
     for i, h in enumerate(header):
         cells = [r[i] for r in body]
+        if h == optional:
+            x, gone, j = _optional_column(cells, decimal_comma)
+            if x is None or gone.size == x.size:
+                why = "holds no number" if x is not None else f"is not numeric (line {lines[j]}: {cells[j].strip()[:20]!r})"
+                notes.append(f"output column '{h}' {why}: left out, no measured output")
+                out_col = None
+                continue
+            if gone.size:
+                notes.append(
+                    f"output column '{h}': {gone.size} of {x.size} cells empty or not finite (first at line "
+                    f"{lines[gone[0]]}): kept as NaN (no measurement there)"
+                )
+            cols[h] = x
+            continue
         x = _to_float(cells, decimal_comma)
         if x is None:
             j = _first_bad_cell(cells, decimal_comma)
             if h in required:
-                what = "empty cell" if not cells[j].strip() else f"non-numeric value {cells[j].strip()[:40]!r}"
+                if cells[j].strip():
+                    what = f"non-numeric value {cells[j].strip()[:40]!r}"
+                else:
+                    blank = [lines[k] for k, c in enumerate(cells) if not c.strip()]
+                    what = "empty cell" + (f" ({len(blank)} in all, lines {_lines_text(blank)})" if len(blank) > 1 else "")
+                if h == time and cells[j].strip():
+                    what += (
+                        " (date-time stamps are not read: convert the column to seconds, e.g. since the first stamp)"
+                        if _DATE_TIME.search(cells[j])
+                        else " (the time column must hold numbers: seconds, or ms / us with the unit in its name)"
+                    )
                 raise DataError(path, what, column=h, row=lines[j])
-            notes.append(f"column '{h}' is not numeric (line {lines[j]}: {cells[j].strip()[:20]!r}): left out")
+            blank = [k for k, c in enumerate(cells) if c.strip().lower() in MISSING]
+            if blank and _to_float(["nan" if c.strip().lower() in MISSING else c for c in cells], decimal_comma) is not None:
+                notes.append(
+                    f"column '{h}' has {len(blank)} empty or NaN cell{'s' if len(blank) > 1 else ''} (first at line "
+                    f"{lines[blank[0]]}): left out"
+                )
+            else:
+                notes.append(f"column '{h}' is not numeric (line {lines[j]}: {cells[j].strip()[:20]!r}): left out")
             continue
         if h in required and not np.all(np.isfinite(x)):
             bad = np.flatnonzero(~np.isfinite(x))
@@ -261,8 +555,20 @@ def load_record(
         cols[h] = x
     if decimal_comma and any("," in r[header.index(h)] for r in body[:50] for h in cols):
         notes.append(f"{_DELIM_NAMES[delim]}-delimited with decimal commas: read as decimal points")
-    if len(body) < min_samples:
-        raise DataError(path, f"too few samples: {len(body)} rows, need at least {min_samples}")
+    if t_scale != (1, 1):
+        cols[time] = cols[time] * t_scale[0] / t_scale[1]
+    drop = _duplicates(path, cols[time], body, lines, cols, header, time, resample)
+    if drop.size:
+        notes.append(
+            f"dropped {drop.size} exact duplicate row{'s' if drop.size > 1 else ''} (every cell equal to the row before; "
+            f"lines {_lines_text([lines[k] for k in drop])}) before resampling"
+        )
+        keep = np.ones(len(body), bool)
+        keep[drop] = False
+        cols = {h: x[keep] for h, x in cols.items()}
+        lines = [ln for ln, k in zip(lines, keep) if k]
+    if len(lines) < min_samples:
+        raise DataError(path, f"too few samples: {len(lines)} rows, need at least {min_samples}")
     t = cols[time]
     line_of = lambda k: lines[k]
     if resample is None:
@@ -281,7 +587,7 @@ def load_record(
         dt=dt if resample is None else float(np.median(np.diff(t))),
         input_name=in_col,
         output_name=out_col,
-        extra={h: v for h, v in cols.items() if h not in required},
+        extra={h: v for h, v in cols.items() if h not in required and h != out_col},
         units=dict(meta.get("units", {})),
         description=str(meta.get("description", "")),
         path=str(path),
@@ -289,6 +595,7 @@ def load_record(
         processing=tuple(notes),
         load=None if meta.get("load") is None else float(meta["load"]),
         metadata=meta,
+        time_name=time,
     )
     if resample is not None:
         rec = resample_record(rec, resample, dt_rtol=dt_rtol, min_samples=min_samples)

@@ -33,6 +33,7 @@ class Record:
     of every original sampling interval longer than the tolerance that resampling
     bridged.  ``load``: a per-record load from the sidecar (``"load": 200``; its
     unit in ``units["load"]``).  ``metadata``: the whole sidecar object.
+    ``time_name``: the file's time column (``time`` holds it in seconds whatever its unit in the file).
     """
 
     time: np.ndarray
@@ -51,6 +52,7 @@ class Record:
     load: float | None = None
     metadata: dict = dataclasses.field(default_factory=dict)
     record_name: str = ""
+    time_name: str = "time_s"
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

@@ -92,7 +92,7 @@ def _load_fit(fit):
     return fit, {}, hashlib.sha256(blob).hexdigest(), None
 
 
-def _load_records(record, *, input=None, output=None) -> list:
+def _load_records(record, *, input=None, output=None, time=None) -> list:
     """The records to condition on: a CSV path, folder or glob, a `Record`, or a sequence of them (one column choice)."""
     from ..data._data import Record
     from ..data.load import load_records
@@ -105,7 +105,9 @@ def _load_records(record, *, input=None, output=None) -> list:
         raise UserInputError(f"expected CSV paths or Records, got a {bad[0]}")
     paths = [x for x in items if not isinstance(x, Record)]
     # the files first (one column choice, folders and globs expanded, units checked alike), then the Records given
-    recs = (load_records(paths, input=input, output=output) if paths else []) + [x for x in items if isinstance(x, Record)]
+    recs = (load_records(paths, input=input, output=output, time=time) if paths else []) + [
+        x for x in items if isinstance(x, Record)
+    ]
     first = recs[0]
     for r in recs[1:]:
         if (r.input_name, r.output_name) != (first.input_name, first.output_name):
@@ -270,6 +272,7 @@ def sample_posterior(
     holdout_fraction: float = 0.25,
     input: str | None = None,
     output: str | None = None,
+    time: str | None = None,
     draws: int = 200,
     seed: int = 0,
     restart: bool = False,
@@ -283,7 +286,8 @@ def sample_posterior(
     record).  Several records: one model conditioned on all, each record run from its own start (a training record of
     a joint fit, matched by content: its fitted start, fit.json ``per_record_start``; another: the fit's start rule);
     the predictive figures get one panel per record, ``predictive.csv`` a ``record`` column.  ``fit``: a fit.json or
-    model file path (its data columns and sample time are the defaults), or a model object.
+    model file path (its data columns and sample time are the defaults), or a model object.  ``time``: the CSVs'
+    time column (default ``time_s``, else one named like a time; `smafl_jax.data.load_record`).
     ``linear``: ``"auto"`` (marginalise the hysteresis weights when the output is linear in them and
     the noise is Gaussian, profile them for Student-t noise, else sample them), ``"sample"``,
     ``"marginalise"`` or ``"profile"``.  ``priors``: a JSON file or ``{name: Prior}``.  Rerunning
@@ -318,12 +322,12 @@ def sample_posterior(
     from ..models._hysteresis import thermal_of
 
     given = list(record) if isinstance(record, (list, tuple)) else [record]
-    if any(isinstance(x, Record) for x in given) and (input or output):
-        raise UserInputError("input / output name columns of a CSV; a Record given as the data has its columns already")
+    if any(isinstance(x, Record) for x in given) and (input or output or time):
+        raise UserInputError("input / output / time name columns of a CSV; a Record given as the data has its columns already")
     model, doc, fit_sha, fit_label = _load_fit(fit)
     B.check_model_supported(model, where=fit_label or "fit")
     info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
-    recs = _load_records(record, input=input or info.get("input_column"), output=output or info.get("output_column"))
+    recs = _load_records(record, input=input or info.get("input_column"), output=output or info.get("output_column"), time=time)
     rec = recs[0]
     several = len(recs) > 1
     for r in recs:
@@ -334,7 +338,7 @@ def sample_posterior(
         if fit_dt and not np.isclose(fit_dt, r.dt, rtol=0.02):
             LOGGER.warning(f"note: the model was fitted at dt={fit_dt:g} s and {r.path or r.name} has dt={r.dt:g} s")
     if heldout is not None:
-        held = _load_records(heldout, input=rec.input_name, output=rec.output_name)
+        held = _load_records(heldout, input=rec.input_name, output=rec.output_name, time=time)
         n_train = [len(r) for r in recs]
     else:
         held = []

@@ -125,6 +125,7 @@ def simulate_record(
     out: PathLike | None = None,
     metrics_file: PathLike | None = None,
     input: str | None = None,
+    time: str | None = None,
     output_name: str | None = None,
     measured: str | None = None,
     resample: float | str | None = None,
@@ -138,7 +139,7 @@ def simulate_record(
 
     ``model``: a model file or fit.json path (its input / output columns, sample time and fitted input
     ranges are the defaults and the range checks) or a model object.  ``record``: a CSV path (``input``
-    picks the input column; ``resample``: None, seconds or ``"auto"`` for irregular time stamps) or a
+    picks the input column, ``time`` the time column; ``resample``: None, seconds or ``"auto"`` for irregular time stamps) or a
     `Record`.  ``measured``: the measured output column to score against (default the fit's output
     column when present).  ``initial_state``: ``fit``, ``steady``, ``cold`` or ``estimate`` (from the
     measured column).  ``method``: the evaluation form (``auto``, ``scan``, ``assoc``, ``chunked``,
@@ -195,12 +196,12 @@ def simulate_record(
             raise UserInputError(f"{model_label}: {o('method')} {method}: {exc}") from None
     data_info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
     if isinstance(record, Record):
-        if input is not None or resample is not None:
-            raise UserInputError("input / resample apply to a CSV; a Record given as the data is loaded already")
+        if input is not None or time is not None or resample is not None:
+            raise UserInputError("input / time / resample apply to a CSV; a Record given as the data is loaded already")
         rec = record
     elif isinstance(record, (str, os.PathLike)):
         in_col = input or data_info.get("input_column")
-        rec = load_record(record, input=in_col, require_output=False, min_samples=2, resample=parse_resample(resample))
+        rec = load_record(record, input=in_col, time=time, require_output=False, min_samples=2, resample=parse_resample(resample))
     else:
         raise UserInputError(f"record: expected a CSV path or a Record, got a {type(record).__name__}")
     for text in rec.processing:
