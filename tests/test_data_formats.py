@@ -292,7 +292,7 @@ def test_input_and_output_recognised_by_name_unit_or_elimination(tmp_path, heade
 
 def test_an_unrecognised_output_among_several_columns_stays_an_error(tmp_path):
     body = "".join(f"{0.05 * k:.2f},{k % 5:.1f},{0.1 * k:.2f},{k}\n" for k in range(N))
-    with pytest.raises(DataError, match="cannot tell which column is the output.*--output COLUMN"):
+    with pytest.raises(DataError, match=r"cannot tell which column is the output.*--output COLUMN"):
         load_record(write(tmp_path, "t,V,x,count\n" + body))
     with pytest.raises(DataError, match="several columns could be the input"):
         load_record(write(tmp_path, "t,U_in,V_set,displacement_mm\n" + "".join(f"{k},1,2,3\n" for k in range(N))))
