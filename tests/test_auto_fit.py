@@ -302,7 +302,8 @@ def test_initial_state_rules_on_a_new_record(rng, tmp_path):
     run = [sys.executable, "-m", "smafl_jax", "simulate", str(model_path), str(csv), "--measured", "displacement_mm"]
     ok = subprocess.run([*run, "--out", str(tmp_path / "a.csv"), "--initial-state", "estimate"], capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr
-    assert "initial state estimate: thermal 0.95" in ok.stderr
+    assert "initial state estimate: thermal state at t=0 as if held at" in ok.stderr
+    assert "(95 % of the record's maximum input" in ok.stderr
     csv2 = tmp_path / "nomeas.csv"
     sj.atomic_write_csv(csv2, {"time_s": np.arange(n) * dt, "voltage_V": u})
     bad = subprocess.run(

@@ -2,7 +2,8 @@
 
 Warns (stderr, and ``input_range_check`` / ``effective_input_range_check`` in the ``--metrics`` JSON)
 when the input, or a cascade's hysteresis input, leaves the range the model was fitted on
-(``data.input_range`` / ``data.effective_input_range`` of a fit.json): when, for how long and by how much.
+(``data.input_range`` / ``data.effective_input_range`` of a fit.json) by more than 1 % of the fitted span
+(`models._range.RANGE_TOL`; smaller exits are counted in the JSON only): when, for how long and by how much.
 A model file without that range is run with a note that the range could not be checked.  It also warns
 (``branch_check``) when the hysteresis input walks a branch its training never visited across 10 % or more of the
 trained span, even inside the range (``data.trained_branches``; a wire heated but never cooled in training).
@@ -109,13 +110,14 @@ def run(args):
     if scored is not None and cal is not None:
         raw, after = scored["raw_after_segment"], scored["recalibrated_after_segment"]
         print(
-            f"against measured '{measured}' after the segment (from {scored['scored_from_s']:.6g} s, {after['n_samples']} samples): "
+            f"against measured '{measured}' after the segment (from {scored['scored_from_s']:.6g} s, {after['n_samples']} samples"
+            f"{_left_out(scored)}): "
             f"raw RMSE {raw['rmse']:.4g}, e_r {_pct(raw['e_r_percent'])}; re-anchored RMSE {after['rmse']:.4g}, "
             f"e_r {_pct(after['e_r_percent'])} (eq. 3){_in_noise(scored)}"
         )
     elif scored is not None:
         print(
-            f"against measured '{measured}': RMSE {scored['rmse']:.4g}{_in_noise(scored)}, max |error| "
+            f"against measured '{measured}'{_left_out(scored, own=True)}: RMSE {scored['rmse']:.4g}{_in_noise(scored)}, max |error| "
             f"{scored['max_abs_error']:.4g}, "
             + (
                 f"e_r {scored['e_r_percent']:.2f} % (eq. 3)"
@@ -130,6 +132,15 @@ def _in_noise(scored: dict) -> str:
     """`` (3.2x the output noise)`` from the scores' noise ratio (`smafl_jax.noise_floor`), else empty."""
     r = (scored.get("noise") or {}).get("scored_ratio")
     return f" ({r:.3g}x the measured output's noise SD)" if r is not None else ""
+
+
+def _left_out(scored: dict, own: bool = False) -> str:
+    """How many blank / NaN measured samples the scores left out (empty when none); ``own``: in brackets."""
+    n = scored.get("n_left_out")
+    if not n:
+        return ""
+    text = f"{n} blank/NaN measured sample(s) left out of the score"
+    return f" ({scored['n_samples']} samples, {text})" if own else f"; {text}"
 
 
 def _pct(x: float) -> str:

@@ -59,6 +59,36 @@ def _descended(model):
     return model.with_hysteresis(dataclasses.replace(h, init="descended", memory=None))
 
 
+def _start_words(model, t_rule, u_first: float, u_hi: float | None) -> dict[str, Any]:
+    """The thermal start of ``model`` (set by ``t_rule``) as the effective voltage it stands for, and in words."""
+    th = getattr(model, "thermal", None)
+    if th is None:
+        return {}
+    try:
+        v = float(th.start_voltage(u_first))
+    except TypeError:  # one start per record of a joint fit: no single voltage
+        return {"thermal_description": th.start_description()}
+    if t_rule == "fit":  # the model's own rule
+        t_rule = {"steady": "steady", "ambient": "cold"}.get(th.init, "fit")
+    if t_rule == "fit":
+        words = f"as if held at {v:.3g} V (as fitted)"
+    elif t_rule == "steady":
+        words = f"at rest with the first input ({v:.3g} V)"
+    elif t_rule == "cold":
+        words = "cold (ambient, 0 V)"
+    else:
+        words = f"as if held at {v:.3g} V ({100 * float(t_rule):.0f} % of the record's maximum input, {u_hi:.3g} V)"
+    return {"u0_V": v, "thermal_description": f"thermal state at t=0 {words}"}
+
+
+def _memory_words(model, label: str | None = None) -> str:
+    """The operator memory in words: the estimate's ``label`` (with the model's rule when "as fitted"), else the rule."""
+    init = getattr(getattr(model, "hysteresis", None), "init", None)
+    if label is None:
+        return f"operator memory {'as fitted' if init in (None, 'fitted') else init}"
+    return f"operator memory {label}" + (f" ({init})" if label == "as fitted" and init else "")
+
+
 def estimate_initial_state(
     model: _Model, u: ArrayLike, y: ArrayLike, dt: float, *, window: int | None = None
 ) -> tuple[_Model, dict[str, Any]]:
@@ -91,7 +121,15 @@ def estimate_initial_state(
             rows.append({"thermal": t_rule, "memory": m_label, "rmse_first": float(np.sqrt(sse / window))})
             if best is None or sse < best[0]:
                 best = (sse, cand, t_rule, m_label)
-    info = {"rule": "estimate", "window_samples": window, "thermal": best[2], "memory": best[3], "candidates": rows}
+    info = {
+        "rule": "estimate",
+        "window_samples": window,
+        "thermal": best[2],
+        "memory": best[3],
+        **_start_words(best[1], best[2], float(u[0]), u_hi),
+        "memory_description": _memory_words(best[1], best[3]),
+        "candidates": rows,
+    }
     return best[1], info
 
 
@@ -109,4 +147,6 @@ def with_initial_state(
                 "the initial-state rule 'estimate' needs the measured output (y; from the command line: --measured COLUMN)"
             )
         return estimate_initial_state(model, u, y, dt)
-    return _descended(_thermal_variant(model, rule)), {"rule": rule}
+    started = _descended(_thermal_variant(model, rule))
+    words = _start_words(started, rule, float(np.asarray(u)[0]), None) if u is not None else {}
+    return started, {"rule": rule, **words, "memory_description": _memory_words(started)}

@@ -182,7 +182,10 @@ def _where_untrained(post, target, i, held, sampled) -> str | None:
     branches = branch_check(x, sampled)
     what = []
     if "warning" in out:
-        what.append(f"{out['n_above'] + out['n_below']} lie outside the range [{lo:.4g}, {hi:.4g}] the sampled data cover")
+        what.append(
+            f"{out['n_beyond_tolerance']} lie outside the range [{lo:.4g}, {hi:.4g}] the sampled data cover (by more than "
+            f"{out['tolerance']['fraction_of_span']:.0%} of its span)"
+        )
     if "warning" in branches:
         what.append(f"{branches['n_untrained']} on branches the sampled data never walked")
     return " and ".join(what) or None

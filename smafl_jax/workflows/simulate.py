@@ -118,6 +118,112 @@ def started_as_in_fit(model: Any, row: Mapping) -> Any:
     return model
 
 
+def _start_note(rule: str, start: Mapping) -> str:
+    """``initial state RULE: <thermal start in volts and words>, <operator memory>`` (`with_initial_state`'s info)."""
+    parts = [start[k] for k in ("thermal_description", "memory_description") if start.get(k)]
+    return f"initial state {rule}" + (f": {', '.join(parts)}" if parts else "")
+
+
+def _is_training_record(doc: Mapping, rec) -> bool:
+    """Whether ``rec`` (by file content) is the record, or one of the records, ``doc``'s fit was trained on."""
+    data = doc.get("data") or {}
+    shas = {data.get("sha256"), *(r.get("sha256") for r in data.get("records") or [])} - {None}
+    return bool(rec.sha256) and rec.sha256 in shas
+
+
+def new_record_start_note(doc: Mapping, model: Any, rec, option: str = "initial_state") -> str | None:
+    """The note saying which start a record that is NOT a training record of the fit gets under the rule ``fit``.
+
+    Why: a fit stores the start of *its* record(s); a new record that starts otherwise (warm after an earlier run) is
+    then simulated from the wrong state without a word (new-user trial: a joint fit's shared cold start, 0.3 V, on a
+    record that started warm: 49.6x the noise, 100x over the first minute).  None for a training record or a model
+    given without its fit.json.
+    """
+    from ..models._initial_state import _memory_words, _start_words
+
+    if not doc or _is_training_record(doc, rec):
+        return None
+    start = _start_words(model, "fit", float(rec.u[0]), None)
+    v = start.get("u0_V")
+    which = next(
+        (r["record"] for r in doc.get("per_record_start") or [] if v is not None and np.isclose(r.get("u0_V", np.nan), v)), None
+    )
+    thermal = start.get("thermal_description")
+    if thermal and which:
+        thermal = thermal.replace("(as fitted)", f"(the fitted start of training record {which})")
+    parts = [x for x in (thermal, _memory_words(model) if getattr(model, "hysteresis", None) is not None else None) if x]
+    if not parts:
+        return None
+    return (
+        f"initial state fit: {rec.name} is not a training record of this fit, so it starts as the fit did: {', '.join(parts)}; "
+        f"if it starts otherwise (e.g. warm after an earlier run), use {option} estimate (the start that best matches the "
+        "measured column's first part), steady (at rest with the first input) or cold"
+    )
+
+
+def _bridged(y: np.ndarray) -> tuple[np.ndarray, int]:
+    """``y`` with its non-finite cells filled by linear interpolation between finite neighbours, and how many."""
+    bad = ~np.isfinite(y)
+    idx = np.arange(y.size)
+    return np.where(bad, np.interp(idx, idx[~bad], y[~bad]), y), int(bad.sum())
+
+
+def _finite_runs(y: np.ndarray, min_len: int = 5) -> list[np.ndarray]:
+    """The stretches of ``y`` without a non-finite cell (at least ``min_len`` long): the noise estimate's second
+    differences must not straddle a blank cell."""
+    ok = np.isfinite(y)
+    d = np.diff(np.concatenate([[0], ok.astype(np.int8), [0]]))
+    runs = zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))
+    return [y[a:b] for a, b in runs if b - a >= min_len]
+
+
+#: A measured output whose range differs from the model's (the fitted record's, and the model's output on this record)
+#: by more than this factor either way gets a unit warning: metres scored against a model in millimetres (new-user trial:
+#: RMSE 2.65, 3.99e+05x the noise, no hint).  10x: a drive smaller than the training's moves less, but the model's own
+#: output on the same drive moves less too, so the two ratios together separate units from amplitude.
+UNIT_RATIO_WARN = 10.0
+
+
+def fitted_output_span(doc: Mapping) -> float | None:
+    """The output range (max - min) of the fitted record(s): fit.json ``data.output_range`` when it has one, else
+    recovered from the fit's metrics (eq. 3: e_r = max|error| / range), None when neither is there."""
+    rng = (doc.get("data") or {}).get("output_range")
+    if isinstance(rng, (list, tuple)) and len(rng) == 2:
+        return float(rng[1]) - float(rng[0])
+    for part in ("whole_record", "train"):
+        m = (doc.get("metrics") or {}).get(part) or {}
+        e, mx = m.get("e_r_percent"), m.get("max_abs_error")
+        if isinstance(e, (int, float)) and isinstance(mx, (int, float)) and np.isfinite(e) and e > 0:
+            return float(mx) * 100.0 / float(e)
+    return None
+
+
+def output_scale_check(measured: np.ndarray, simulated: np.ndarray, fitted_span: float | None, column: str) -> dict:
+    """The measured output's range against the fitted output range and the model's output range on this record, with a
+    ``warning`` (possible unit mismatch) when it differs from every known one by more than `UNIT_RATIO_WARN` the same
+    way."""
+    span_m = float(np.ptp(measured)) if measured.size else 0.0
+    span_s = float(np.ptp(simulated))
+    out = {"measured_range": span_m, "model_output_range": span_s, "fitted_output_range": fitted_span}
+    refs = {"fitted": fitted_span, "model_output": span_s}
+    ratios = {k: span_m / v for k, v in refs.items() if v is not None and v > 0 and span_m > 0}
+    out["ratios"] = ratios
+    out["warn_factor"] = UNIT_RATIO_WARN
+    if not ratios:
+        return out
+    big = all(r > UNIT_RATIO_WARN for r in ratios.values())
+    small = all(r < 1.0 / UNIT_RATIO_WARN for r in ratios.values())
+    if big or small:
+        r = ratios.get("fitted", ratios.get("model_output"))
+        fitted = f", the fitted record's output {fitted_span:.4g}" if fitted_span is not None else ""
+        out["warning"] = (
+            f"possible unit mismatch: the measured column '{column}' spans {span_m:.4g} and the model's output on this record "
+            f"{span_s:.4g}{fitted} ({r:.3g}x); check the column's units (metres against a model in millimetres reads 1000x "
+            "smaller): the scores compare different units"
+        )
+    return out
+
+
 def simulate_record(
     model: PathLike | Any,
     record: PathLike | Record,
@@ -201,7 +307,12 @@ def simulate_record(
         rec = record
     elif isinstance(record, (str, os.PathLike)):
         in_col = input or data_info.get("input_column")
-        rec = load_record(record, input=in_col, time=time, require_output=False, min_samples=2, resample=parse_resample(resample))
+        # the measured column is optional: loaded as the output, blank cells come back as NaN (left out of the scores)
+        out_col = measured or data_info.get("output_column")
+        rec = load_record(
+            record, input=in_col, output=out_col, time=time, require_output=False, min_samples=2,
+            resample=parse_resample(resample),
+        )  # fmt: skip
     else:
         raise UserInputError(f"record: expected a CSV path or a Record, got a {type(record).__name__}")
     for text in rec.processing:
@@ -218,9 +329,11 @@ def simulate_record(
         from ..models._initial_state import with_initial_state
 
         y_meas = np.asarray(cols_in[measured_col], dtype=np.float64) if measured_col in cols_in else None
+        if initial_state == "estimate" and y_meas is not None and 0 < np.sum(~np.isfinite(y_meas)) < y_meas.size - 1:
+            y_meas, n_filled = _bridged(y_meas)
+            note(f"estimating the start: {n_filled} blank/NaN cell(s) of '{measured_col}' bridged by linear interpolation")
         model, start = with_initial_state(model, initial_state, rec.u, y_meas, rec.dt)
-        detail = f": thermal {start['thermal']}, operator memory {start['memory']}" if "thermal" in start else ""
-        note(f"initial state {initial_state}{detail}")
+        note(_start_note(initial_state, start))
     elif (own := training_record_start(doc, rec)) is not None:
         # a training record of a joint fit: its own fitted start, not the shared rule the saved model carries
         model = started_as_in_fit(model, own)
@@ -228,6 +341,8 @@ def simulate_record(
         note(
             f"initial state fit: {rec.name} is training record {own['record']} of the joint fit: its own start, {own['u0_V']:.4g} V{memory}"
         )
+    elif (text := new_record_start_note(doc, model, rec, o("initial_state"))) is not None:
+        note(text)
     if measured and measured_col not in cols_in:
         raise UserInputError(f"{data_label}: no column {measured_col!r} to score against; columns: {sorted(cols_in)}")
     calibration = None
@@ -297,12 +412,20 @@ def simulate_record(
         from ..identify._metrics import metrics
 
         ym = np.asarray(cols_in[measured_col], dtype=np.float64)
-        if calibration is None:
-            scores = {"measured_column": measured_col, **metrics(ym, y)}
-        elif calibration["scored_from_sample"] < len(rec):
+        # blank / NaN measured cells (an optional column with gaps) are left out of every score, and kept in the CSV
+        finite = np.isfinite(ym)
+        n_left = int(ym.size - finite.sum())
+        k_cal = calibration["scored_from_sample"] if calibration is not None else 0
+        if k_cal < len(rec) and not finite[k_cal:].any():
+            warn(
+                f"the measured column '{measured_col}' has no finite value{' after the segment' if k_cal else ''}: nothing scored"
+            )
+        elif calibration is None:
+            scores = {"measured_column": measured_col, **metrics(ym[finite], y[finite])}
+        elif k_cal < len(rec):
             from ..identify._recalibrate import after_segment_metrics
 
-            after = after_segment_metrics(ym, y_raw, y, calibration["scored_from_sample"])
+            after = after_segment_metrics(ym[finite], y_raw[finite], y[finite], int(finite[:k_cal].sum()))
             scores = {
                 "measured_column": measured_col,
                 "scored_from_s": calibration["scored_from_s"],
@@ -314,7 +437,19 @@ def simulate_record(
         if scores is not None:  # the error over the measured output's own noise: 1x = only the noise is left
             from ..identify._metrics import noise_floor
 
-            scores["noise"] = noise_floor([ym], scored={"rmse": scores["rmse"]})
+            runs = _finite_runs(ym)
+            scores["noise"] = noise_floor(runs or [ym[finite]], scored={"rmse": scores["rmse"]})
+            if n_left:
+                scores["n_left_out"] = n_left
+                scores["left_out_rule"] = "blank / NaN measured cells: left out of every score (kept in the output CSV)"
+                note(
+                    f"scoring against '{measured_col}' on its {int(finite.sum())} finite samples: {n_left} blank/NaN "
+                    "sample(s) left out of the score"
+                )
+            scale = output_scale_check(ym[finite], y[finite], fitted_output_span(doc), measured_col)
+            scores["output_scale_check"] = scale
+            if scale.get("warning"):
+                warn(scale["warning"])
         cols[measured_col] = ym
     if metrics_file is not None and scores is None:  # checked before anything is written
         raise UserInputError(f"{o('metrics_file')} needs a measured output column in the CSV (see {o('measured')})")

@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._errors import UserInputError
+from ..models._range import range_tolerance
 from .control import build_loop, check_option, option_namer, prepare_out
 
 PathLike = str | os.PathLike
@@ -126,10 +127,12 @@ def sweep_range_summary(metrics: Mapping[str, np.ndarray], settings: dict) -> di
         return {"checked": False, "note": "the plant model file carries no training input range: drive range not checked"}
     lo, hi = float(rng[0]), float(rng[1])
     u_hi, u_lo = np.asarray(metrics["u_max_V"]), np.asarray(metrics["u_min_V"])
-    out_cfg = (u_hi > hi) | (u_lo < lo)
+    tol = range_tolerance(lo, hi)  # the rule of every range check (models._range): exits under 1 % of the span are noise
+    out_cfg = (u_hi > hi + tol) | (u_lo < lo - tol)
     doc = {
         "checked": True,
         "fitted_range": [lo, hi],
+        "tolerance": tol,
         "n_configurations": int(out_cfg.size),
         "n_outside": int(out_cfg.sum()),
         "max_above": float(max(np.max(u_hi) - hi, 0.0)),
@@ -138,7 +141,7 @@ def sweep_range_summary(metrics: Mapping[str, np.ndarray], settings: dict) -> di
     if doc["n_outside"]:
         doc["warning"] = (
             f"{doc['n_outside']} of {doc['n_configurations']} configurations drive the plant model outside the input range it "
-            f"was fitted on [{lo:.4g}, {hi:.4g}] (up to {doc['max_above']:.4g} above, {doc['max_below']:.4g} below; per "
+            f"was fitted on [{lo:.4g}, {hi:.4g}] by more than {tol:.3g} (up to {doc['max_above']:.4g} above, {doc['max_below']:.4g} below; per "
             "configuration in sweep.csv, columns u_min_V / u_max_V): their metrics extrapolate the model"
         )
     return doc
