@@ -54,6 +54,7 @@ from ..identify._fit import as_fit_data, default_trainable
 from ..models._constraints import constrain, log_jacobian, positive, unconstrain
 from ..models._hysteresis import column_weight_scales, hysteresis_of, linear_field_columns, record_model, thermal_of
 from ..models._simulate import simulate
+from . import _cholesky as _chol
 
 __all__ = [
     "Prior",
@@ -304,10 +305,15 @@ def _start_rule(init, u0=None, memory=None):
 
 
 def _ridge_lstsq(A, y, ridge):
-    """``argmin |A w - y|^2 + |ridge * w|^2`` by SVD (stays finite for duplicate operator columns)."""
-    Aa = jnp.concatenate([A, jnp.diag(ridge)], axis=0)
-    ya = jnp.concatenate([y, jnp.zeros_like(ridge)])
-    return jnp.linalg.lstsq(Aa, ya)[0]
+    """``argmin |A w - y|^2 + |ridge * w|^2`` from the normal equations, by the pool-safe Cholesky of `_cholesky` (an
+    SVD is a LAPACK call that can deadlock under vmap on the CPU).
+
+    A floor of 1e-10 of the largest diagonal entry keeps the system positive definite in floating point when the
+    ridge is tiny and operator columns duplicate each other (an SVD would return the minimum-norm solution there;
+    the floor moves the fitted values by about that relative amount)."""
+    M = A.T @ A
+    M = M + jnp.diag(ridge**2 + 1e-10 * jnp.max(jnp.diag(M)))
+    return _chol.cho_solve(_chol.cholesky(M), A.T @ y)
 
 
 def check_model_supported(model, where="model"):
@@ -598,8 +604,8 @@ class _Density(eqx.Module):
             return self._loglik_resid(A @ _ridge_lstsq(A, y, sigma / tau) - y, sigma)
         # marginal likelihood of y ~ N(0, sigma^2 I + A diag(tau^2) A^T) via the p x p system
         n = y.shape[0]
-        L = jnp.linalg.cholesky(M)
-        z = jax.scipy.linalg.solve_triangular(L, b, lower=True)
+        L = _chol.cholesky(M)  # not LAPACK: batched under vmap it deadlocked XLA's CPU pool (bayes/_cholesky.py)
+        z = _chol.solve_lower(L, b)
         logdet_M = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))
         quad = jnp.sum(y * y) / sigma**2 - jnp.sum(z * z)
         logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log(tau**2)) + logdet_M
@@ -627,10 +633,10 @@ class _Density(eqx.Module):
             if self.linear == "profile":
                 mean = _ridge_lstsq(A, y, sigma / tau)
             else:
-                L = jnp.linalg.cholesky(M)
-                mean = jax.scipy.linalg.cho_solve((L, True), b)
+                L = _chol.cholesky(M)  # see _loglik
+                mean = _chol.cho_solve(L, b)
                 z = jax.random.normal(k1, mean.shape)
-                mean = mean + jax.scipy.linalg.solve_triangular(L.T, z, lower=False)
+                mean = mean + _chol.solve_lower_transpose(L, z)
             model = model.with_hysteresis(model.hysteresis.with_linear_weights(mean / c))
         f = self.started(model, record).simulate(u, dt)
         e = jax.random.normal(k2, f.shape) if self.noise == "gaussian" else jax.random.t(k2, self.nu, f.shape)
