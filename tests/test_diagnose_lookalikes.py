@@ -69,3 +69,18 @@ def test_lookalikes_alike_stay_an_ambiguous_selection(monkeypatch):
 def test_a_clear_winner_is_selected_whatever_else_passes(monkeypatch):
     (selected, _, ambiguous, unspecific), _ = _select(monkeypatch, {"output_lag": 0.40, "creep": 0.47, "input_warp": 0.48})
     assert selected == ["output_lag"] and ambiguous == [] and unspecific == []
+
+
+def test_time_left_counts_only_candidates_that_run_the_calibrated_test(monkeypatch):
+    """Candidates below the gain gate are rejected at once, so the estimate of the time left weighs them near zero (it
+    said "about 10 min left" one step before the end of a new-user diagnosis that then finished at once)."""
+    seen = {}
+
+    class Capture(_diagnose.Steps):
+        def __init__(self, label, total, **kw):
+            seen[label] = kw.get("weights")
+            super().__init__(label, total, **{**kw, "enabled": False})
+
+    monkeypatch.setattr(_diagnose, "Steps", Capture)
+    _select(monkeypatch, {"creep": 0.50, "input_warp": 0.90, "output_lag": 0.97, "delay": 0.99})
+    assert seen["diagnose: calibrated test"] == [1.0, 1.0, 0.01, 0.01]  # gains 50 %, 10 %, 3 %, 1 % vs min_gain 5 %
