@@ -195,7 +195,8 @@ def test_plain_numbers_become_trainable_arrays():
 
 
 def test_simulate_value_checks_under_jit(rng):
-    """Values are checked inside the compiled function (equinox.error_if), not only at the Python level."""
+    """Values are checked inside the compiled function (equinox.error_if), not only at the Python level: traced
+    values (here under an outer filter_jit) cannot be read before compiling (concrete ones: tests/test_api_input_checks.py)."""
     import equinox as eqx
 
     casc = sj.Cascade(thermal=sj.JouleThermal(), hysteresis=random_eupi(rng))
@@ -203,11 +204,11 @@ def test_simulate_value_checks_under_jit(rng):
     bad = u.copy()
     bad[10] = np.nan
     with pytest.raises(eqx.EquinoxRuntimeError, match="NaN or inf"):
-        sj.simulate(casc, bad, 0.5)
+        eqx.filter_jit(sj.simulate)(casc, bad, jnp.asarray(0.5))
     with pytest.raises(eqx.EquinoxRuntimeError, match="dt must be > 0"):
-        sj.simulate(casc, u, -0.5)
+        eqx.filter_jit(sj.simulate)(casc, u, jnp.asarray(-0.5))
     with pytest.raises(eqx.EquinoxRuntimeError, match="NaN or inf"):
-        sj.simulate_batch(casc, np.stack([u, bad]), 0.5)
+        eqx.filter_jit(sj.simulate_batch)(casc, np.stack([u, bad]), jnp.asarray(0.5))
     assert np.all(np.isfinite(np.asarray(sj.simulate(casc, u, 0.5))))
 
 

@@ -28,13 +28,16 @@ Preisach levels) are never sampled; its weights are its `linear_fields`.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import logging
 import math
 import os
 import shutil
+import signal
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -383,7 +386,7 @@ class Posterior:
         if gain_scale is not None and not (math.isfinite(float(gain_scale)) and float(gain_scale) > 0):
             raise UserInputError(f"gain_scale (prior sd of the gains) must be > 0, got {gain_scale}")
         check_model_supported(model)
-        self.data = as_fit_data(data, dt)
+        self.data = as_fit_data(data, dt, model=model)
         self.noise, self.nu, self.linear, self.prior_only = noise, float(nu), linear, bool(prior_only)
         spec = default_trainable(model) if trainable is None else trainable
         if linear != "sample":
@@ -755,7 +758,30 @@ def _hdf_backend(path, name, read_only=False):
                         raise
                     time.sleep(0.05)
 
+        def save_step(self, state, accepted):
+            with _interrupt_deferred():  # a Ctrl-C in the middle of the HDF5 write would leave the file unreadable
+                super().save_step(state, accepted)
+
     return _Backend(str(path), name=name, read_only=read_only)
+
+
+@contextlib.contextmanager
+def _interrupt_deferred():
+    """Hold a Ctrl-C (SIGINT) until the block has run, then raise it: for short writes that must not be cut in two.
+
+    Only in the main thread while Python's default handler is installed (elsewhere nothing changes)."""
+    main = threading.current_thread() is threading.main_thread()
+    if not main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    pending = []
+    signal.signal(signal.SIGINT, lambda *args: pending.append(args))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if pending:
+        raise KeyboardInterrupt
 
 
 def _backend_ok(path, name):
@@ -774,10 +800,11 @@ def _checkpoint(path):
     """Atomic copy of the (closed) HDF5 file: the fallback if a kill corrupts the live file."""
     bak = Path(str(path) + ".bak")
     tmp = bak.with_name(bak.name + ".tmp")
-    shutil.copyfile(path, tmp)
-    with open(tmp, "rb") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, bak)
+    with _interrupt_deferred():  # a Ctrl-C would leave the temporary copy behind
+        shutil.copyfile(path, tmp)
+        with open(tmp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, bak)
 
 
 def run_sampler(
@@ -802,6 +829,9 @@ def run_sampler(
     so a resumed run continues the same Markov chain).  A copy taken between
     steps every ``checkpoint_s`` seconds is used when a hard kill has left the
     live file unreadable (the steps since the copy are recomputed, never duplicated).
+    ``on_step(k)``: called with the number of steps the chain holds, once before sampling (the steps already there)
+    and after each new step once it is saved.  A Ctrl-C raises KeyboardInterrupt from here with every completed step
+    saved (none cut in two), and without emcee's dump of the walkers' positions.
     """
     import emcee
 
@@ -843,6 +873,10 @@ def run_sampler(
         if not done:
             backend.reset(n_walkers, ndim)
     sampler = emcee.EnsembleSampler(n_walkers, ndim, posterior, vectorize=True, backend=backend)
+    # emcee wraps the density in a function that prints the walkers' positions and a traceback for ANY exception
+    # raised inside it (a Ctrl-C lands there nearly always: the density is where the time goes) before re-raising
+    # it; the vectorised density needs no wrapper (no args / kwargs), so it is called directly
+    sampler.log_prob_fn = posterior
     start = None
     if done:
         state = None  # emcee restores the last position, log-probabilities and random state
@@ -854,6 +888,8 @@ def run_sampler(
         if path is not None:
             _store_start(backend, start)
     remaining = n_steps - done
+    if on_step is not None:
+        on_step(done)
     if remaining > 0:
         if state is None:
             state = sampler.get_last_sample()

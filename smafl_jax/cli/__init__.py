@@ -21,6 +21,7 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 
 # Command -> one-line help, in the order `smafl --help` lists them.  The same text is given by each
 # module's add_parser (tests/test_reliability.py checks they agree); kept here so that the top-level
@@ -97,6 +98,18 @@ def _cleanup(reset=False):
         io.remove_created_dirs_if_empty()
 
 
+def _created_note():
+    """One line per output folder this run created together with missing folders above it (``--out a/b/c`` where
+    ``a`` did not exist): the user may not have meant to create a tree; a folder created alone needs no word."""
+    io = sys.modules.get(f"{__package__.rpartition('.')[0]}._io")
+    created = [Path(d) for d in getattr(io, "_CREATED_DIRS", [])]
+    for leaf in created:
+        above = [d for d in created if d != leaf and d in leaf.parents]
+        if above and not any(leaf in d.parents for d in created):
+            shown = ", ".join(str(d) for d in sorted(above, key=lambda d: len(d.parts)))
+            print(f"note: created the folder {leaf} and the missing folders above it ({shown})", file=sys.stderr)
+
+
 def _error_text(exc):
     if isinstance(exc, OSError):
         where = exc.filename if exc.filename is not None else ""
@@ -136,6 +149,38 @@ _BLAS_ENV_SET = False
 INTERRUPT_GRACE_S = 3.0
 _exit_lock = threading.Lock()
 
+# The command line being run (its words after ``smafl``) and the running command's words for an interrupt (what it
+# kept and how to go on: `set_interrupt_note`), read by whichever thread reports the interrupt.
+_run = {"argv": [], "note": None}
+
+
+def set_interrupt_note(note):
+    """Have an interrupt of this run say ``note()`` after ``interrupted`` (a callable returning a str or None).
+
+    Called from the watchdog thread too: ``note`` must only read values in memory, never wait or touch files."""
+    _run["note"] = note
+
+
+def command_line(drop=()):
+    """The command line being run, as one shell-quoted string starting ``smafl``, without the flags in ``drop``
+    (value-less flags; an abbreviation argparse accepted counts as the flag)."""
+    import shlex
+
+    def dropped(a):
+        return len(a) > 2 and a.startswith("--") and any(d.startswith(a) for d in drop)
+
+    return shlex.join(["smafl", *(a for a in _run["argv"] if not dropped(a))])
+
+
+def _interrupted_text(name):
+    note = None
+    if _run["note"] is not None:
+        try:
+            note = _run["note"]()
+        except Exception:  # a faulty note must not stop the interrupt from ending the run
+            note = None
+    return f"{name}: interrupted" + (f"; {note}" if note else "")
+
 
 def _interrupted_exit(name):
     """Clean up, say so and end the process with 130 (once, from whichever thread gets here first)."""
@@ -144,7 +189,7 @@ def _interrupted_exit(name):
     _cleanup()
     _remove_temporary_files()
     try:
-        print(f"{name}: interrupted", file=sys.stderr)
+        print(_interrupted_text(name), file=sys.stderr)
     except (OSError, ValueError):
         pass
     _flush()
@@ -220,6 +265,7 @@ def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     command = _command_of(argv)
     name = f"smafl {command}" if command else "smafl"
+    _run.update(argv=list(argv), note=None)
     _cleanup(reset=True)
     if standalone:
         _install_interrupt_watchdog(name)
@@ -236,7 +282,9 @@ def main(argv=None):
         enable_persistent_cache()
         quiet = getattr(args, "quiet", False) or getattr(args, "no_progress", False)
         with _blas_threads(), shown_on_stderr(not quiet):
-            return int(args.func(args) or 0)
+            rc = int(args.func(args) or 0)
+        _created_note()
+        return rc
     except (UserInputError, OSError) as exc:
         _cleanup()
         print(f"{name}: error: {_error_text(exc)}", file=sys.stderr)
@@ -249,7 +297,7 @@ def main(argv=None):
             _interrupted_exit(name)
         _cleanup()
         _remove_temporary_files()
-        print(f"{name}: interrupted", file=sys.stderr)
+        print(_interrupted_text(name), file=sys.stderr)
         return 130
 
 

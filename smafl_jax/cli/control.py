@@ -34,7 +34,13 @@ def add_loop_arguments(p):
     p.add_argument("--K", type=float, default=10.0, help="I-I compensator gain, V/(mm s) (paper: 10)")
     p.add_argument("--dt", type=float, default=0.01, help="controller sample time, s (not given in the paper; default 0.01)")
     p.add_argument("--duration", type=float, default=40.0, help="simulated time for sine/step references, s")
-    p.add_argument("--umax", type=float, default=7.4, help="upper drive limit, V (paper's maximum test voltage); lower limit 0 V")
+    p.add_argument(
+        "--umax",
+        type=float,
+        default=None,
+        help="upper drive limit, V (default 7.4, the paper's maximum test voltage; a note says when that lies above the "
+        "plant model's trained input range); lower limit 0 V",
+    )
     p.add_argument("--noise", type=float, default=0.0, help="measurement noise standard deviation, mm")
     p.add_argument(
         "--quantum", type=float, default=0.0, help="sensor quantisation step, mm (0 = none; 16 bit over 10 mm = 1.5e-4)"

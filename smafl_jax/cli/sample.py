@@ -26,7 +26,7 @@ def add_parser(sub):
     )
     p.add_argument("--fit", required=True, help="fit.json (or model file) whose model is the starting point")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--steps", type=int, default=3000, help="chain length per walker (default 3000)")
+    p.add_argument("--steps", type=int, default=3000, help="chain length per walker, at least 10 (default 3000)")
     p.add_argument("--walkers", type=int, default=None, help="number of walkers (default max(32, 2 ndim + 2))")
     p.add_argument(
         "--burn", type=int, default=None, help="steps discarded as burn-in (default: automatic, from the autocorrelation time)"
@@ -81,9 +81,33 @@ OPTION_NAMES = {
 }
 
 
+def _interrupt_note(out, steps, saved):
+    """What an interrupt says (`set_interrupt_note`): the steps saved in the chain and the command that resumes it.
+
+    ``saved["k"]`` is kept up to date by the sampler (in memory, so the watchdog thread can read it)."""
+    import os
+
+    from . import command_line
+
+    def note():
+        k = saved.get("k")
+        if not k:
+            return None  # nothing sampled yet: a rerun starts afresh
+        chain = os.path.join(out, "chain.h5")
+        again = command_line(drop=("--restart",))
+        if k >= steps:
+            return f"the chain is complete ({k} of {steps} steps saved in {chain}); `{again}` writes the results without sampling again"
+        return f"{k} of {steps} steps are saved in {chain}; resume with: {again}"
+
+    return note
+
+
 def run(args):
     from ..workflows import sample as W
+    from . import set_interrupt_note
 
+    saved = {}
+    set_interrupt_note(_interrupt_note(args.out, args.steps, saved))
     with workflow_lines_on_stderr(W.__name__, warning_prefix=False):
         res = W.sample_posterior(
             args.data_csv[0] if len(args.data_csv) == 1 else args.data_csv,
@@ -107,6 +131,7 @@ def run(args):
             restart=args.restart,
             progress=not args.no_progress,
             option_names=OPTION_NAMES,
+            on_step=lambda k: saved.update(k=k),
         )
     summary, out = res.summary, res.out
     print(f"{'parameter':<22}{'mean':>12}{'sd':>12}{'2.5 %':>12}{'97.5 %':>12}{'ESS':>8}")

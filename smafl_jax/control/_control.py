@@ -56,6 +56,7 @@ __all__ = [
     "plant_step",
     "simulate_closed_loop",
     "closed_loop_metrics",
+    "reachable_output",
     "sine_reference",
     "step_reference",
     "PAPER_GAINS",
@@ -334,6 +335,38 @@ def simulate_closed_loop(loop: ClosedLoop, dt: float) -> tuple[dict[str, Any], d
 def closed_loop_metrics(loop: ClosedLoop, dt: float) -> dict[str, Any]:
     """Metrics only (accumulated inside the scan, no trajectories stored): what sweeps use."""
     return _metrics(loop, _check_dt(dt))
+
+
+@eqx.filter_jit
+def _open_loop(model, u, dt):
+    """The plant's output for the drive ``u`` from rest at ``u[0]``, by the closed loop's own plant step."""
+
+    def step(state, uk):
+        return plant_step(model, state, uk, dt)
+
+    return jax.lax.scan(step, plant_init(model, u[0]), u)[1]
+
+
+#: Samples per phase of `reachable_output`'s slow cycle; each phase lasts 5 thermal time constants (99.3 % settled).
+REACH_SAMPLES = 400
+
+
+def reachable_output(plant: Any, umax: float, umin: float = 0.0) -> tuple[float, float]:
+    """``(lowest, highest)`` output of ``plant`` with its drive limited to ``[umin, umax]``.
+
+    Taken along a slow full cycle from rest at ``umin``: hold, ramp to ``umax``, hold, ramp back, hold, each phase five
+    thermal time constants long (a hysteresis model is rate independent; the Joule lag's ZOH step is exact at any
+    sample time).  A lagged plant driven within the limits keeps its thermal state inside the range of the settled
+    ones, so on a monotone model the cycle's ends bound what any drive reaches; a reference outside this range cannot
+    be tracked, the drive saturates there.
+    """
+    thermal, _ = _parts(plant)
+    dt = 5.0 / (float(thermal.k1) * REACH_SAMPLES) if thermal is not None else 1.0
+    ramp = np.linspace(umin, umax, REACH_SAMPLES)
+    hold_lo, hold_hi = np.full(REACH_SAMPLES, float(umin)), np.full(REACH_SAMPLES, float(umax))
+    u = np.concatenate([hold_lo, ramp, hold_hi, ramp[::-1], hold_lo])
+    y = np.asarray(_open_loop(plant, jnp.asarray(u), jnp.asarray(dt, dtype=jnp.float64)))
+    return float(np.min(y)), float(np.max(y))
 
 
 # -- references -----------------------------------------------------------------------

@@ -488,6 +488,14 @@ class Creep(AbstractFeatureEffect):
         return cls(g=_a(ctx["sign"] * rng.uniform(0.08, 0.2)), tau=_a(rng.uniform(100, 400))), {}
 
 
+def _sech2(x):
+    """``1 / cosh(x)**2`` as ``4 e^(-2|x|) / (1 + e^(-2|x|))**2``: the same values, but cosh(x)**2 overflowed (a
+    RuntimeWarning on the user's stderr in `smafl diagnose`) for |x| > ~355, and ``1 - tanh(x)**2`` loses all digits
+    far out (tanh rounds to 1).  |x| is capped at 350 (the value floored at 4e-304), so that exp never underflows."""
+    a = np.exp(-2.0 * np.minimum(np.abs(np.asarray(x, dtype=np.float64)), 350.0))
+    return 4.0 * a / (1.0 + a) ** 2
+
+
 @register_effect
 class OutputSaturation(AbstractOutputEffect):
     """Output saturation: steep sigmoidal SMA transformation between two stroke limits."""
@@ -516,7 +524,7 @@ class OutputSaturation(AbstractOutputEffect):
             forward=lambda z: m + w * np.tanh((z - m) / w),
             # the inverse diverges at the limits: targets are clipped just inside them
             inverse=lambda y: m + w * np.arctanh(np.clip((y - m) / w, -0.995, 0.995)),
-            slope=lambda z: 1.0 / np.cosh((z - m) / w) ** 2,
+            slope=lambda z: _sech2((z - m) / w),
         )
 
     @classmethod

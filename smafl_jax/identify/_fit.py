@@ -22,13 +22,16 @@ Two stages:
 Failure story: a non-finite model output at the start raises `UserInputError`
 naming the record and sample; a refinement that produces NaN/inf, or ends worse
 than its start, is discarded (the initialiser's model is kept) and
-``FitResult.message`` says so.  Nothing is random: equal inputs give bitwise
+``FitResult.message`` says so; one that does not lower the loss is said in
+``message`` and ``info`` and logged.  Bad data (shapes, non-finite values, a
+missing sample time for plain arrays) raise `UserInputError` in `as_fit_data`.  Nothing is random: equal inputs give bitwise
 equal results.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from collections.abc import Iterable, Sequence
 from typing import Any, NamedTuple, TypeVar
@@ -46,12 +49,19 @@ from .._errors import UserInputError
 from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ..models._hysteresis import hysteresis_of, record_model, thermal_of
+from ..models._simulate import UNUSED_DT, check_sample_time, first_bad, uses_sample_time
 from . import varpro
 from ._gain_prior import check_gain_prior, map_gains
+from ._metrics import NOISE_FLOOR_WARN, noise_floor
 from ._stall import STALL_MIN_GAIN, STALL_WINDOW, StallStop
 from .varpro import FIT_SOLVE
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
+
+logger = logging.getLogger(__name__)
+
+#: Fewest samples a record to fit may have.
+MIN_FIT_SAMPLES = 3
 
 #: A model type: the initialisers return a model of the class they were given.
 _Model = TypeVar("_Model", bound=eqx.Module)
@@ -70,40 +80,89 @@ class FitResult(NamedTuple):
     info: dict | None = None  # stage details: profile grid, timings
 
 
-def as_fit_data(data: Any, dt: float | None = None) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
+def _is_pair(data: Any, record_type: type) -> bool:
+    """One ``(u, y)`` pair or ``(u, y, dt)`` triple (its first entry an array), not a sequence of records."""
+    return (
+        isinstance(data, tuple)
+        and len(data) in (2, 3)
+        and not isinstance(data[0], (tuple, list, record_type))
+        and np.ndim(data[0]) >= 1
+    )
+
+
+def _as_array(x: Any, what: str) -> np.ndarray:
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise UserInputError(f"{what}: expected an array of numbers, got {type(x).__name__}") from None
+
+
+def as_fit_data(data: Any, dt: float | None = None, *, model: Any = None) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
     """Normalise fit data to a tuple of ``(u, y, dt)`` float64 numpy triples.
 
     Accepts a `Record`, a sequence of `Record`, a ``(u, y)`` pair with ``dt``, one ``(u, y, dt)`` triple
-    or a sequence of them.
+    or a sequence of them.  Plain arrays carry no time, so they need ``dt`` (the sample time in seconds), unless
+    ``model`` is given and its output does not depend on time (a hysteresis model on its own,
+    `smafl_jax.models._simulate.uses_sample_time`).  Bad shapes, non-finite values and a missing or non-positive
+    ``dt`` raise `UserInputError` naming the record, the array and the first bad index.
     """
     from ..data._data import Record
 
     if isinstance(data, Record):
         data = [data]
-    elif isinstance(data, tuple) and len(data) == 2 and not isinstance(data[0], (tuple, list, Record)) and np.ndim(data[0]) == 1:
-        data = [(data[0], data[1], dt)]
-    elif isinstance(data, tuple) and len(data) == 3 and not isinstance(data[0], (tuple, list, Record)) and np.ndim(data[0]) == 1:
-        data = [data]  # one (u, y, dt) triple, not a sequence of three records
+    elif _is_pair(data, Record):
+        data = [data]  # one (u, y) pair or (u, y, dt) triple, not a sequence of two or three records
+    elif isinstance(data, np.ndarray) or not isinstance(data, Iterable):
+        shape = f" of shape {np.shape(data)}" if isinstance(data, np.ndarray) else ""
+        raise UserInputError(
+            f"fit data: expected a Record, a (u, y) tuple, a (u, y, dt) tuple or a list of them, got {type(data).__name__}{shape}"
+        )
+    needs_dt = model is None or uses_sample_time(model)
     out = []
     for i, item in enumerate(data):
         if isinstance(item, Record):
             if item.y is None:
                 raise UserInputError(f"record {i} ({item.name}) has no output column to fit")
             u, y, d = item.u, item.y, item.dt
+        elif isinstance(item, (tuple, list)) and len(item) in (2, 3):
+            u, y, d = item if len(item) == 3 else (*item, None)
+            if d is None:
+                d = dt
         else:
-            u, y, d = item if len(item) == 3 else (*item, dt)
-        u = np.asarray(u, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
-        if u.ndim != 1 or u.shape != y.shape:
-            raise UserInputError(f"fit data {i}: input and output must be 1-D of equal length, got {u.shape} and {y.shape}")
-        if u.shape[0] < 3:
-            raise UserInputError(f"fit data {i}: need at least 3 samples, got {u.shape[0]}")
-        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
-            raise UserInputError(f"fit data {i}: non-finite values in input or output")
-        d = 1.0 if d is None else float(d)
-        if not d > 0:
-            raise UserInputError(f"fit data {i}: sample time must be > 0, got {d}")
-        out.append((u, y, d))
+            shape = f" of shape {np.shape(item)}" if isinstance(item, np.ndarray) else ""
+            raise UserInputError(
+                f"fit data {i}: expected a Record or a (u, y) / (u, y, dt) tuple, got {type(item).__name__}{shape}"
+                + ("; pass one record as a tuple (u, y), not a list [u, y]" if np.ndim(item) == 1 else "")
+            )
+        u = _as_array(u, f"fit data {i}: input u")
+        y = _as_array(y, f"fit data {i}: output y")
+        for name, x in (("input u", u), ("output y", y)):
+            if x.ndim != 1:
+                raise UserInputError(
+                    f"fit data {i}: the {name} must be 1-D (one sample per time step), got shape {x.shape}"
+                    + (f"; one column (N, 1): pass {name[-1]}[:, 0]" if x.ndim == 2 and x.shape[1] == 1 else "")
+                )
+        if u.shape != y.shape:
+            raise UserInputError(f"fit data {i}: the input u has {u.shape[0]} samples but the output y has {y.shape[0]}")
+        if u.shape[0] < MIN_FIT_SAMPLES:
+            raise UserInputError(f"fit data {i}: need at least {MIN_FIT_SAMPLES} samples, got {u.shape[0]}")
+        for name, x in (("input u", u), ("output y", y)):
+            bad = first_bad(x)
+            if bad is not None:
+                raise UserInputError(
+                    f"fit data {i}: the {name} is not finite at index {bad[0][0]} (value {bad[1]}); remove or fill it first"
+                )
+        if d is None:
+            if needs_dt:
+                kind = f"a {type(model).__name__}'s output depends on time" if model is not None else "the model needs it"
+                raise UserInputError(
+                    f"fit data {i}: dt (the sample time in seconds) is required: plain (u, y) arrays carry no time and "
+                    f"{kind}; pass it, e.g. sj.fit(model, (u, y), 0.05), or a Record (sj.load_record), which carries "
+                    "its own"
+                )
+            d = UNUSED_DT
+        check_sample_time(d, f"fit data {i}: dt")
+        out.append((u, y, float(d)))
     if not out:
         raise UserInputError("no data to fit")
     return tuple(out)
@@ -246,7 +305,7 @@ def init_linear(model: _Model, data: Any, dt: float | None = None, *, weights: A
     static gain and offset) replaced by the bounded least-squares solution
     (play-operator gains >= 0).
     """
-    data = as_fit_data(data, dt)
+    data = as_fit_data(data, dt, model=model)
     if isinstance(weights, np.ndarray) and weights.ndim == 1:  # one array over the concatenated rows
         weights = (
             np.split(weights, np.cumsum([u.shape[0] for u, _, _ in data])[:-1])
@@ -315,7 +374,7 @@ def init_profile(
     search on ``log k1`` between its neighbours (`smafl_jax.identify.varpro.search`) to ``xatol`` in ``log k1``.
     Returns ``(model, info)`` with the grid, the profiled loss on it and the refined k1.
     """
-    data = as_fit_data(data, dt)
+    data = as_fit_data(data, dt, model=model)
     weights = _as_weights(weights, data)
     part = _linear_part(model)
     if part is None or not _has_k1(model):
@@ -515,6 +574,19 @@ def fit(
 ) -> FitResult:
     """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
 
+    ``fit`` trains the parameters of ``model`` as given: its structure and its start-state rules (the thermal
+    ``init``, the operator memory ``init``) stay what they are, so a record that does not start as those rules
+    assume (e.g. a cold start fitted with the default ``init="steady"``) gets a poor fit that may still report
+    converged.  For the full pipeline (start-state screening, the hysteresis input and class, a validation split)
+    use `smafl_jax.report.fit_record` (what ``smafl fit`` runs; it takes a `Record`: ``sj.load_record(path)`` or
+    ``sj.Record.from_arrays(t, u, y)``), or `smafl_jax.fit_records` for several records.
+    ``dt``: the sample time in seconds, required with plain arrays unless the model is rate-independent (a
+    hysteresis model on its own); a `Record` carries its own.  When the joint refinement does not lower the
+    initialiser's loss, ``message`` and ``info["refinement_lowered_loss"]`` say so (with the training RMSE in output
+    noise SDs, ``info["train_noise_ratio"]``), and a warning is logged; at INFO when that was to be expected (the
+    initialiser already solved the trained problem, as in the default fit of an EUPI or a cascade, and the fit is within
+    `NOISE_FLOOR_WARN` noise SDs) or the caller gave the start (``init=None``).
+
     ``init``: ``"profile"`` (variable projection over thermal ``k1``, see
     `init_profile`), ``"linear"`` (BVLS gains at the current thermal
     parameters), ``None`` (start from ``model`` as given) or ``"auto"``
@@ -542,7 +614,7 @@ def fit(
     if part is None or hysteresis_of(res.model) is None:  # no operator gains (a Joule lag): nothing for the prior
         return res
     feats, nonneg, setw = part
-    data = as_fit_data(data, dt)
+    data = as_fit_data(data, dt, model=model)
     blocks = [_features(feats, record_model(res.model, i), jnp.asarray(u), jnp.asarray(d)) for i, (u, _, d) in enumerate(data)]
     if not all(np.all(np.isfinite(np.asarray(A))) for A in blocks):
         return res
@@ -564,11 +636,12 @@ def _fit(
     release_if_needed()  # long sessions compile many programs: stay under the memory-map limit (`_compile_cache`)
     if init not in _INITS:
         raise UserInputError(f"init must be one of {_INITS}, got {init!r}")
+    own_start = init is not None  # fit makes its own start (else the caller gave it, and gates on the result itself)
     if solver is not None and solver not in SOLVERS:
         raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
     if not (isinstance(max_steps, (int, np.integer)) and max_steps >= 0):
         raise UserInputError(f"max_steps must be an integer >= 0, got {max_steps!r}")
-    data = as_fit_data(data, dt)
+    data = as_fit_data(data, dt, model=model)
     weights = _as_weights(weights, data)
     spec = default_trainable(model) if trainable is None else trainable
     info = {}
@@ -622,6 +695,17 @@ def _fit(
         return FitResult(model, init_loss, n_steps, False, message, solver, init_loss, info)
     # "worse" beyond round-off: relative to the start loss and to the signal energy (exact fits end near 0)
     energy = 0.5 * sum(float(np.sum(w * y * y)) for (_, y, _), w in zip(data, weights))
+    gained = _refinement_gained(loss, init_loss, energy)
+    info["refinement_lowered_loss"] = gained
+    solved = not gained and _initialiser_solves(model, spec, init)
+    ratio = None if gained else _noise_ratio(data, weights, loss)
+    if ratio is not None:
+        info["train_noise_ratio"] = ratio
+    poor = ratio is not None and ratio > NOISE_FLOOR_WARN
+    if not gained:
+        level = logging.WARNING if own_start and (poor or not solved) else logging.INFO
+        steps = f"{solver}, {n_steps} steps, loss {init_loss:.10g} -> {loss:.10g}"
+        logger.log(level, "fit: %s", _no_gain_words(steps, solved, ratio if poor else None, level >= logging.WARNING))
     if loss > init_loss * (1 + 1e-9) + 1e-13 * energy:
         message = (
             f"joint refinement ({solver}) ended worse than its start (loss {loss:.10g} > {init_loss:.10g}); "
@@ -637,7 +721,75 @@ def _fit(
         message = "converged"
     else:
         message = f"{solver} stopped after {n_steps} steps without meeting its tolerance (max_steps={max_steps})"
+    if not gained:
+        message += "; " + _no_gain_words(f"loss {init_loss:.10g} -> {loss:.10g}", solved, ratio if poor else None, False)
     return FitResult(fitted, loss, n_steps, ok, message, solver, init_loss, info)
+
+
+#: What `FitResult.message` adds when the joint refinement did not lower the initialiser's loss.
+NO_GAIN = "the joint refinement did not lower the loss below the initialiser's"
+#: ... and why, when the initialiser already solved the trained problem (`_initialiser_solves`).
+SOLVED = "the initialiser is already the least-squares optimum of the trained parameters (the gains, with k1 after the profile)"
+
+
+def _refinement_gained(loss: float, init_loss: float, energy: float) -> bool:
+    """Whether the refinement ended below its start beyond round-off (the tolerances of the "ended worse" test); a
+    start already at round-off of an exact fit counts as gained (there is nothing left to lower)."""
+    return bool(loss < init_loss * (1 - 1e-9) - 1e-13 * energy) or init_loss <= 1e-13 * energy
+
+
+def _initialiser_solves(model: Any, spec: Any, init: str | None) -> bool:
+    """Whether the initialiser ``init`` already solved the problem ``spec`` trains: ``"linear"`` with only the
+    hysteresis gains trained (bounded least squares is exact), ``"profile"`` with only those and ``k1`` (the variable
+    projection is the joint optimum).  Then a refinement has nothing to lower, and its not lowering is no news."""
+    h = hysteresis_of(model)
+    if init not in ("linear", "profile") or h is None:
+        return False
+    try:
+        ref = jax.tree_util.tree_map(lambda _: False, spec)
+        fields = list(h.linear_fields())
+        ref = eqx.tree_at(lambda s: [getattr(hysteresis_of(s), f) for f in fields], ref, [True] * len(fields))
+        if init == "profile":
+            ref = eqx.tree_at(lambda s: s.thermal.k1, ref, True)
+    except (AttributeError, TypeError, ValueError):  # a spec that does not mirror the model: say nothing special
+        return False
+    trained, allowed = jax.tree_util.tree_leaves(spec), jax.tree_util.tree_leaves(ref)
+    if len(trained) != len(allowed):
+        return False
+    return not any(np.any(np.asarray(t)) and not np.all(np.asarray(a)) for t, a in zip(trained, allowed))
+
+
+def _noise_ratio(data: tuple, weights: tuple, loss: float) -> float | None:
+    """Training RMSE over the output's noise SD estimated from the measured outputs (`noise_floor`); None if unknown."""
+    n = sum(float(np.sum(w)) for w in weights)
+    sd = noise_floor([y for _, y, _ in data])["sd"]
+    if not (n > 0 and sd > 0 and np.isfinite(loss)):
+        return None
+    return float(np.sqrt(2.0 * loss / n) / sd)
+
+
+def _no_gain_words(what: str, solved: bool, poor: float | None, long: bool) -> str:
+    """Why a refinement did not lower the loss (`NO_GAIN`, ``what``: the numbers), for `FitResult.message` and the log.
+
+    The log line is a WARNING (``long``: with the way out) when fit made its own start and either the refinement had
+    something to do (not `_initialiser_solves`) or the fit stays above `NOISE_FLOOR_WARN` output-noise SDs (``poor``: the
+    ratio); else INFO: the initialiser already solved the trained problem of a fit at the noise (every default fit of
+    an EUPI or a cascade ends so), or the caller gave the start (``init=None``: the library's own pipelines refine a
+    screened start and keep the better of the two themselves, e.g. the diagnosis's `refine_model`: 11 such lines in one
+    ``smafl diagnose`` run otherwise)."""
+    words = f"{NO_GAIN} ({what})" + (f": {SOLVED}" if solved else "")
+    if poor is not None:
+        words += (
+            f"; training RMSE {poor:.3g}x the output's noise SD (estimated from the data): the model's start state or "
+            "structure may not suit this record"
+        )
+    if long:
+        return words + (
+            ". The start state and the structure stay as given (fit does not choose them): for a record that does not "
+            "start at rest with its first input, or to choose the structure, smafl_jax.report.fit_record("
+            "sj.Record.from_arrays(t, u, y)) (what `smafl fit` runs) screens both"
+        )
+    return words + "; the start state and the structure are as given (smafl_jax.report.fit_record screens them)"
 
 
 def fit_many(

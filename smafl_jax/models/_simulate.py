@@ -1,15 +1,57 @@
-"""Jitted public entry points for running any model on an input record."""
+"""Jitted public entry points for running any model on an input record.
+
+Bad input is reported in two tiers.  Concrete arrays (numpy, lists, JAX arrays outside a trace) are checked in
+Python before anything is compiled, so the `UserInputError` names the argument, the first bad index and its value.
+Traced values (``jax.jit(sj.simulate)``, a `vmap` over sample times) cannot be read there: the compiled function
+checks them itself (`equinox.error_if`).
+"""
 
 from __future__ import annotations
+
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
+from .._errors import UserInputError
+from ._hysteresis import hysteresis_of
 
 __all__ = ["simulate", "simulate_batch"]
+
+#: The ``dt`` a rate-independent model runs with when none is given: it never reads it (`uses_sample_time`).
+UNUSED_DT = 1.0
+
+
+def uses_sample_time(model: Any) -> bool:
+    """Whether ``model``'s output depends on the sample time ``dt``.
+
+    A hysteresis model on its own is rate-independent (`AbstractHysteresis`: its ``simulate`` ignores ``dt``; a
+    hysteresis model is its own ``hysteresis`` part); every other model (a thermal lag, a cascade, an extended or
+    recalibrated model, a user's class) is taken to need it.
+    """
+    h = hysteresis_of(model)
+    return h is None or h is not model
+
+
+def _is_traced(x: Any) -> bool:
+    return isinstance(x, jax.core.Tracer)
+
+
+def first_bad(x: np.ndarray) -> tuple[tuple[int, ...], float] | None:
+    """``(index, value)`` of the first non-finite entry of ``x`` (row-major order), or None when all are finite."""
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return None
+    idx = np.unravel_index(int(np.flatnonzero(bad)[0]), x.shape)
+    return tuple(int(i) for i in idx), float(x[idx])
+
+
+def _where(idx: tuple[int, ...]) -> str:
+    return f"index {idx[0]}" if len(idx) == 1 else f"index {idx}"
 
 
 def _checked(u, dt):
@@ -32,26 +74,72 @@ def _simulate_batch(model, u, dt):
     return jax.vmap(lambda x: model.simulate(x, dt))(u)
 
 
-def _as_inputs(u, dt, ndim):
-    u = jnp.asarray(u, dtype=jnp.float64)
+def check_sample_time(dt: Any, what: str = "dt") -> None:
+    """`UserInputError` unless a concrete ``dt`` is one finite number > 0 (traced values are left to the compiled check)."""
+    if _is_traced(dt):
+        if jnp.ndim(dt) != 0:
+            raise UserInputError(f"{what}: the sample time must be a scalar, got shape {jnp.shape(dt)}")
+        return
+    try:
+        d = np.asarray(dt, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise UserInputError(f"{what}: the sample time must be a number of seconds, got {dt!r}") from None
+    if d.ndim != 0:
+        raise UserInputError(f"{what}: the sample time must be a scalar, got shape {d.shape}")
+    if not (np.isfinite(d) and d > 0):
+        raise UserInputError(f"{what}: the sample time must be a finite number of seconds > 0, got {float(d)!r}")
+
+
+def _as_inputs(model, u, dt, ndim, call):
+    name = "u" if ndim == 1 else "u (a batch of records)"
+    shape_hint = "(one sample per time step)" if ndim == 1 else "(records, samples)"
+    if _is_traced(u):
+        u = jnp.asarray(u, dtype=jnp.float64)
+    else:
+        try:
+            u_np = np.asarray(u, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise UserInputError(f"{name}: expected an array of numbers, got {type(u).__name__}") from None
+        if u_np.ndim != ndim:
+            hint = ""
+            if ndim == 1 and u_np.ndim == 2:
+                hint = (
+                    "; a column (N, 1): pass u[:, 0]; a batch of records (B, T): use sj.simulate_batch"
+                    if u_np.shape[-1] == 1
+                    else "; for a batch of records (B, T) use sj.simulate_batch"
+                )
+            raise UserInputError(f"{name}: the input must be {ndim}-D {shape_hint}, got shape {u_np.shape}{hint}")
+        bad = first_bad(u_np)
+        if bad is not None:
+            raise UserInputError(f"{name}: the input is not finite at {_where(bad[0])} (value {bad[1]}); remove or fill it first")
+        u = jnp.asarray(u_np)
     if u.ndim != ndim:
-        raise ValueError(f"input must be {ndim}-D, got shape {u.shape}")
+        raise UserInputError(f"{name}: the input must be {ndim}-D {shape_hint}, got shape {u.shape}")
     if u.shape[-1] < 2:
-        raise ValueError(f"input record needs at least 2 samples, got {u.shape[-1]}")
+        raise UserInputError(f"{name}: the input record needs at least 2 samples, got {u.shape[-1]}")
+    if dt is None:
+        if uses_sample_time(model):
+            raise UserInputError(
+                f"dt (the sample time in seconds) is required: a {type(model).__name__}'s output depends on time; "
+                f"pass it, e.g. {call}"
+            )
+        dt = UNUSED_DT
+    check_sample_time(dt)
     # dt goes in as an array so a new sample time never triggers a recompile.
-    dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
-    if dt.ndim != 0:
-        raise ValueError(f"dt must be a scalar, got shape {dt.shape}")
-    return u, dt
+    return u, jnp.asarray(dt, dtype=jnp.float64)
 
 
 def simulate(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> jax.Array:
-    """Model output for a 1-D input record ``u`` sampled every ``dt`` seconds (compiled once per shape)."""
-    u, dt = _as_inputs(u, dt, 1)
+    """Model output for a 1-D input record ``u`` sampled every ``dt`` seconds (compiled once per shape).
+
+    ``dt`` is required for every model whose output depends on time (a thermal lag, a cascade); a hysteresis model on
+    its own is rate-independent and may omit it.  Bad concrete input raises `UserInputError` before compiling.
+    """
+    u, dt = _as_inputs(model, u, dt, 1, "sj.simulate(model, u, 0.05)")
     return _simulate(model, u, dt)
 
 
 def simulate_batch(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> jax.Array:
-    """Model outputs ``(B, T)`` for a batch of input records ``(B, T)`` (one `vmap`, one compile)."""
-    u, dt = _as_inputs(u, dt, 2)
+    """Model outputs ``(B, T)`` for a batch of input records ``(B, T)`` (one `vmap`, one compile); ``dt`` as in `simulate`."""
+    u, dt = _as_inputs(model, u, dt, 2, "sj.simulate_batch(model, u, 0.05)")
     return _simulate_batch(model, u, dt)

@@ -26,7 +26,17 @@ if TYPE_CHECKING:
 
 PathLike = str | os.PathLike
 
-__all__ = ["FILES", "ControlResult", "run_control", "build_loop", "load_reference", "check_option", "DEFAULT_MODEL"]
+__all__ = [
+    "FILES",
+    "ControlResult",
+    "run_control",
+    "build_loop",
+    "load_reference",
+    "check_option",
+    "reference_check",
+    "DEFAULT_MODEL",
+    "DEFAULT_UMAX",
+]
 
 LOGGER = logging.getLogger(__name__)
 
@@ -43,6 +53,12 @@ NONNEGATIVE_OPTIONS = ("noise", "quantum", "K", "kp", "ki", "kd", "eval_start")
 
 #: Most samples one closed-loop run may have (~1 GB of trajectory arrays at float64).
 MAX_SAMPLES = 10_000_000
+
+#: The drive limit when none is given (V): the paper's maximum test voltage.  Kept when the plant model was trained on
+#: a narrower range (a note says so): the fitted range is what one record visited, not the actuator's limit, and a
+#: default that moved with the model would change every loop's saturation without being asked; the drive range
+#: warning reports any drive that does leave the trained range.
+DEFAULT_UMAX = 7.4
 
 CONTROLLERS = ("pid", "composite")
 
@@ -61,8 +77,9 @@ class ControlResult(NamedTuple):
 
     ``metrics``: e_mean_mm (eq. 8), rmse_mm, max_abs_error_mm, saturated_fraction, u_min_V, u_max_V (floats);
     ``trajectory``: the time series of ``trajectory.csv`` and more (numpy arrays); ``settings``: the loop's
-    settings as written to metrics.json; ``range_checks``: the drive against the plant model's fitted raw and
-    effective input ranges; ``warnings``: the range warnings as text; ``out`` and ``files`` (by name).
+    settings as written to metrics.json (with ``reference_check``: the reference against the output the plant can
+    reach, `reference_check`); ``range_checks``: the drive against the plant model's fitted raw and
+    effective input ranges; ``warnings``: the reference and range warnings as text; ``out`` and ``files`` (by name).
     """
 
     metrics: dict[str, float]
@@ -93,29 +110,48 @@ def _check_samples(span_s, dt, what, dt_name):
 
 
 def _read_reference_csv(path):
-    """(time, values, column name) from a reference CSV with a header; errors name the file and line."""
+    """(time, values, column name) from a reference CSV with a header; errors name the file and row (the line of
+    the file, counted from 1 with the header)."""
     import csv
 
     try:
         with open(path, newline="") as f:
-            rows = [r for r in csv.reader(f) if any(c.strip() for c in r)]
+            reader = csv.reader(f)
+            rows = [(reader.line_num, r) for r in reader if any(c.strip() for c in r)]
     except (UnicodeDecodeError, csv.Error) as exc:
         raise UserInputError(f"{path}: cannot read as CSV ({exc})") from None
     if not rows:
         raise UserInputError(f"{path}: the reference file is empty; need a header with 'time_s' and a reference column")
-    header = [h.strip().lstrip("\ufeff") for h in rows[0]]
+    header = [h.strip().lstrip("\ufeff") for h in rows[0][1]]
     if "time_s" not in header or len(header) < 2:
         raise UserInputError(f"{path}: need a 'time_s' column and a reference column, found {header}")
     col = next(h for h in header if h != "time_s")
     it, ic = header.index("time_s"), header.index(col)
     t, r = [], []
-    for line, row in enumerate(rows[1:], start=2):
+    for line, row in rows[1:]:
         try:
             t.append(float(row[it]))
             r.append(float(row[ic]))
         except (ValueError, IndexError):
             raise UserInputError(f"{path}, row {line}: expected numbers in 'time_s' and '{col}', got {row}") from None
+        if not (np.isfinite(t[-1]) and np.isfinite(r[-1])):
+            name = "time_s" if not np.isfinite(t[-1]) else col
+            bad = sum(1 for _, x in rows[1:] if len(x) > max(it, ic) and not _finite(x[header.index(name)]))
+            raise UserInputError(
+                f"{path}, row {line}: '{name}' is {row[header.index(name)].strip()!r}"
+                + (f" ({bad} such rows in all)" if bad > 1 else "")
+                + "; a reference needs a finite value on every row (fill or drop those rows)"
+            )
+        if len(t) > 1 and t[-1] <= t[-2]:
+            raise UserInputError(f"{path}, row {line}: time_s {t[-1]:g} does not increase (previous row {t[-2]:g})")
     return np.asarray(t), np.asarray(r), col
+
+
+def _finite(cell) -> bool:
+    try:
+        return bool(np.isfinite(float(cell)))
+    except ValueError:
+        return False
 
 
 def load_reference(spec, dt: float, duration: float, option_names: Mapping[str, str] | None = None) -> np.ndarray:
@@ -178,7 +214,7 @@ def build_loop(
     K: float = 10.0,
     dt: float = 0.01,
     duration: float = 40.0,
-    umax: float = 7.4,
+    umax: float | None = None,
     noise: float = 0.0,
     quantum: float = 0.0,
     eval_start: float = 0.0,
@@ -194,7 +230,8 @@ def build_loop(
     + 1.5 mm over ``duration``), ``"step"`` (2.5 mm), a CSV with ``time_s`` and a reference column, or an
     array of samples on the ``dt`` grid.  ``controller``: ``"pid"`` or ``"composite"`` (PID + I-I
     compensator of gain ``K``, on the static hysteresis model unless ``compensator_cascade``).  The drive
-    is limited to [0, ``umax``] V; ``noise`` / ``quantum``: sensor noise sd and quantisation step (mm);
+    is limited to [0, ``umax``] V (default `DEFAULT_UMAX`, with a note when it lies above the plant model's trained
+    input range); ``noise`` / ``quantum``: sensor noise sd and quantisation step (mm);
     metrics count samples from ``eval_start`` s on.  ``option_names``: how error messages name the settings.
     """
     import jax
@@ -203,6 +240,8 @@ def build_loop(
     from ..control._control import PID, ClosedLoop, IICompensator
 
     o = option_namer(option_names)
+    umax_given = umax is not None
+    umax = DEFAULT_UMAX if umax is None else umax
     values = {"dt": dt, "duration": duration, "umax": umax, "tf": tf, "noise": noise, "quantum": quantum, "K": K}
     values |= {"kp": kp, "ki": ki, "kd": kd, "eval_start": eval_start}
     for name in POSITIVE_OPTIONS + NONNEGATIVE_OPTIONS:
@@ -216,6 +255,8 @@ def build_loop(
     ref = load_reference(reference, dt, duration, option_names)
     if len(ref) < 2:
         raise UserInputError(f"the reference has fewer than 2 samples: increase {o('duration')} or decrease {o('dt')}")
+    if not umax_given:
+        _default_umax_note(umax, plant_doc, o)
     try:
         comp = IICompensator(ident, K, hysteresis_only=not compensator_cascade) if controller == "composite" else None
         loop = ClosedLoop(
@@ -256,6 +297,63 @@ def build_loop(
         "plant_fitted_ranges": {k: (plant_doc.get("data") or {}).get(k) for k in ("input_range", "effective_input_range")},
     }
     return loop, settings
+
+
+def _default_umax_note(umax, plant_doc, o):
+    """Say which drive limit is used when none was given and it lies above the plant model's trained input range."""
+    from ..models._range import range_tolerance
+
+    rng = (plant_doc.get("data") or {}).get("input_range")
+    if not (isinstance(rng, (list, tuple)) and len(rng) == 2):
+        return
+    lo, hi = float(rng[0]), float(rng[1])
+    if umax > hi + range_tolerance(lo, hi):
+        LOGGER.info(
+            f"note: no {o('umax')} given: the drive is limited to {umax:g} V (the paper's maximum test voltage), above the "
+            f"input range [{lo:.4g}, {hi:.4g}] V the plant model was trained on; a drive above {hi:.4g} V runs the model "
+            f"where it has no data (pass {o('umax')} {hi:.4g} to stay inside it)"
+        )
+
+
+def reference_check(plant, ref, umax: float, reference_name: str) -> tuple[dict, str | None]:
+    """The reference against the output the plant model can reach with its drive in [0, ``umax``] V, and a warning.
+
+    The reachable range is `smafl_jax.control.reachable_output` (a slow full cycle of the drive); reference samples
+    beyond it by more than 1 % of its span (`models._range.range_tolerance`) cannot be tracked: the drive saturates
+    there and the loop's error measures the plant's limits rather than the controller.  Seen in a new-user trial:
+    references of -1 mm and 8 mm on a plant reaching 0.6-5.1 mm ran with no word beyond "saturated 100 %"."""
+    from ..control._control import reachable_output
+    from ..models._range import range_tolerance
+
+    try:
+        lo, hi = reachable_output(plant, umax)
+    except (TypeError, ValueError):  # a plant the reach cannot be computed for: nothing to say
+        return {"checked": False}, None
+    ref = np.asarray(ref, dtype=np.float64)
+    tol = range_tolerance(lo, hi)
+    above, below = ref > hi + tol, ref < lo - tol
+    doc = {
+        "checked": True,
+        "reachable_output_mm": [lo, hi],
+        "drive_range_V": [0.0, float(umax)],
+        "reference_range_mm": [float(ref.min()), float(ref.max())],
+        "tolerance_mm": tol,
+        "n_samples": int(ref.size),
+        "n_above": int(above.sum()),
+        "n_below": int(below.sum()),
+    }
+    n_out = doc["n_above"] + doc["n_below"]
+    if not n_out:
+        return doc, None
+    by = max(float(np.max(ref - hi)), float(np.max(lo - ref)))
+    doc["warning"] = (
+        f"reference {reference_name} spans [{ref.min():.4g}, {ref.max():.4g}] mm, but the plant model's output reaches only "
+        f"[{lo:.4g}, {hi:.4g}] mm with the drive in [0, {umax:g}] V (over a slow full cycle of the drive): {n_out} of "
+        f"{ref.size} reference samples ({100 * n_out / ref.size:.1f} %) are out of reach ({doc['n_above']} above, "
+        f"{doc['n_below']} below, by up to {by:.3g} mm); the loop cannot track them, the drive saturates there and the "
+        "error there measures the plant's limits, not the controller"
+    )
+    return doc, doc["warning"]
 
 
 def drive_range_checks(plant, settings: dict, u, dt: float) -> tuple[list[dict], list[str]]:
@@ -329,7 +427,7 @@ def run_control(
     K: float = 10.0,
     dt: float = 0.01,
     duration: float = 40.0,
-    umax: float = 7.4,
+    umax: float | None = None,
     noise: float = 0.0,
     quantum: float = 0.0,
     eval_start: float = 0.0,
@@ -340,7 +438,8 @@ def run_control(
     """Simulate the closed loop (PID or composite PID) on ``plant`` and write trajectory, figures and metrics to ``out``.
 
     The settings are those of `build_loop` (checked before anything is written).  A drive outside the
-    range the plant model was fitted on is reported in ``range_checks`` / ``warnings`` (and logged); an
+    range the plant model was fitted on is reported in ``range_checks`` / ``warnings`` (and logged), a reference
+    outside the output the plant can reach in ``warnings`` and ``settings["reference_check"]`` (`reference_check`); an
     unstable loop (non-finite metrics) is a `UserInputError`.  An ``out`` folder holding earlier results
     is reused: files of the same name are replaced (logged as a note), others are left alone.
     """
@@ -368,6 +467,11 @@ def run_control(
         option_names=option_names,
     )
     out = prepare_out(out)
+    ref_name = Path(str(settings["reference"])).name if isinstance(reference, (str, os.PathLike)) else "(array)"
+    ref_check, ref_warning = reference_check(loop.plant, loop.reference, settings["u_range_V"][1], ref_name)
+    settings["reference_check"] = ref_check  # beside the plant's fitted ranges: what the loop can be asked to do
+    if ref_warning:
+        LOGGER.warning(ref_warning)
     LOGGER.info(f"simulating {settings['n_samples']} samples ({controller}) ...")
     metrics, traj = simulate_closed_loop(loop, dt)
     metrics = {k: float(v) for k, v in metrics.items()}
@@ -375,6 +479,7 @@ def run_control(
     if not all(np.isfinite(v) for v in metrics.values()):
         raise UserInputError("the closed loop produced non-finite values (unstable gains for this sample time?)")
     range_checks, warnings = drive_range_checks(loop.plant, settings, traj["u"], dt)
+    warnings = ([ref_warning] if ref_warning else []) + warnings
     # figures first: nothing is written when drawing fails
     tracking, error = _figures(traj, metrics, controller, Path(str(settings["reference"])).name)
     files = {name: out / name for name in FILES}

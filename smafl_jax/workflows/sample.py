@@ -17,7 +17,7 @@ import json
 import logging
 import os
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -191,11 +191,27 @@ def _where_untrained(post, target, i, held, sampled) -> str | None:
     return " and ".join(what) or None
 
 
-def _unconstrained(post, target, i, mask, fq, sigma, sampled) -> str | None:
+def _unit(rec) -> str | None:
+    """The unit of ``rec``'s output column: the sidecar's, a suffix (``_mm``) or brackets (``displacement [mm]``)."""
+    import re
+
+    from ..report._reportdoc import unit_of
+
+    unit = unit_of(rec.output_name, getattr(rec, "units", None))
+    if unit is None:
+        m = re.search(r"[\[(]\s*([^\])]+?)\s*[\])]\s*$", str(rec.output_name or ""))
+        unit = m.group(1) if m else None
+    return unit
+
+
+def _unconstrained(post, target, i, mask, fq, sigma, sampled, y_span=None) -> str | None:
     """A warning when the model's own 95 % band on the held-out samples of ``target`` is wider than `BAND_WARN` noise
     SDs on more than a tenth of them: the sampled data do not constrain the model there, and the weights of operators
     they never moved come from their priors.  Measured (session 34): a joint fit's length-sensor records sampled on
-    their first 75 %: the tails' bands 3 mm wide on a 1 mm stroke, with every operator column inside its sampled range."""
+    their first 75 %: the tails' bands 3 mm wide on a 1 mm stroke, with every operator column inside its sampled range.
+    Widths are in the output's unit; where a band is wider than ``y_span`` (the span the output covers in the sampled
+    data) the warning says the band means nothing there (a new-user trial read a 29 mm band on a 5 mm stroke as a
+    wide uncertainty)."""
     held = ~np.asarray(mask, bool)
     if not held.any() or not sigma:
         return None
@@ -205,13 +221,26 @@ def _unconstrained(post, target, i, mask, fq, sigma, sampled) -> str | None:
         return None
     first = int(np.flatnonzero(wide)[0])
     why = _where_untrained(post, target, i, held, sampled)
-    return (
+    unit = _unit(target)
+    u = f" {unit}" if unit else ""
+    column = f" ({target.output_name})" if target.output_name else ""
+    text = (
         f"{_record_file(target)}: on {int(wide.sum())} of {int(held.sum())} held-out samples (from {target.time[first]:.4g} s) "
-        f"the 95 % band of the model output is wider than {BAND_WARN:g} noise SDs (up to {float(np.max(width[held])):.3g}; "
-        f"noise SD {sigma:.3g}): the sampled data do not constrain the model there "
-        + (f"({why})" if why else "(operator combinations the sampled data never excited)")
-        + "; sample on records that cover such drives, or hold out less"
+        f"the 95 % band of the model output{column} is wider than {BAND_WARN:g} noise SDs (up to "
+        f"{float(np.max(width[held])):.3g}{u}; noise SD {sigma:.3g}{u})"
     )
+    text += ": the sampled data do not constrain the model there " + (
+        f"({why})" if why else "(operator combinations the sampled data never excited)"
+    )
+    beyond = held & (width > y_span) if y_span else np.zeros_like(held)
+    if beyond.any():
+        first = int(np.flatnonzero(beyond)[0])
+        text += (
+            f"; on {int(beyond.sum())} of them (from {target.time[first]:.4g} s) the band is wider than the whole span the "
+            f"output covers in the sampled data ({y_span:.3g}{u}): there it is meaningless (the model extrapolates), "
+            "not a measure of uncertainty"
+        )
+    return text + "; sample on records that cover such drives, or hold out less"
 
 
 #: `smafl sample` warns when the fit's own validation error exceeds this many noise SDs (fit.json
@@ -281,6 +310,7 @@ def sample_posterior(
     restart: bool = False,
     progress: bool = True,
     option_names: Mapping[str, str] | None = None,
+    on_step: Callable[[int], Any] | None = None,
 ) -> SamplingResult:
     """Sample the posterior of ``fit``'s model conditioned on ``record``; write chain, summary and figures to ``out``.
 
@@ -296,7 +326,8 @@ def sample_posterior(
     ``"marginalise"`` or ``"profile"``.  ``priors``: a JSON file or ``{name: Prior}``.  Rerunning
     with the same settings extends the chain in ``out/chain.h5``; a chain of other settings is
     refused (`UserInputError`) unless ``restart``.  ``progress``: emcee's progress bar on stderr.
-    ``option_names``: how error messages name the settings (the command line passes its flags).
+    ``option_names``: how error messages name the settings (the command line passes its flags).  ``on_step(k)``:
+    called with the number of steps saved in ``out/chain.h5``, before sampling and after each step (`run_sampler`).
     """
     from .._io import atomic_write_csv, atomic_write_json, atomic_write_text, prepare_out_dir
     from ..bayes import _bayes as B
@@ -403,7 +434,9 @@ def sample_posterior(
         f"sampling {post.ndim} parameters ({', '.join(post.names[:6])}{' ...' if post.ndim > 6 else ''}); "
         f"gains: {linear}; noise: {noise}" + (f"; {len(recs)} records, each from its own start" if several else "")
     )
-    run = B.run_sampler(post, steps, n_walkers=n_walkers, path=chain_path, seed=seed, resume=resume, progress=progress)
+    run = B.run_sampler(
+        post, steps, n_walkers=n_walkers, path=chain_path, seed=seed, resume=resume, progress=progress, on_step=on_step
+    )
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", B.ChainTooShortWarning)  # reported in summary["warnings"]
@@ -467,6 +500,8 @@ def sample_posterior(
     )
     table, covers, inside = {}, {}, [0, 0]
     sampled = _sampled_branches(post, recs, n_train)
+    y_sampled = np.concatenate([r.y[:n] for r, n in zip(recs, n_train)])
+    y_span = float(np.nanmax(y_sampled) - np.nanmin(y_sampled))  # blank measured cells are NaN
     sigma = (summary["parameters"].get("noise.sigma") or {}).get("mean")
     for k, (target, i, mask) in enumerate(targets):
         f, yrep = post.predict(flat[idx], target.u, target.dt, rng, record=i)
@@ -483,7 +518,7 @@ def sample_posterior(
             _save(fig, out / "predictive_loop.png")
         fq = np.quantile(f, [0.025, 0.5, 0.975], axis=0)
         yq = np.quantile(yrep, [0.025, 0.975], axis=0)
-        loose = _unconstrained(post, target, i, mask, fq, sigma, sampled)
+        loose = _unconstrained(post, target, i, mask, fq, sigma, sampled, y_span)
         if loose:
             summary["warnings"].append(loose)
         held_part = ~mask
