@@ -60,6 +60,7 @@ def test_a_refinement_that_never_helps_validation_is_rejected(record, monkeypatc
     np.testing.assert_allclose(y0, np.asarray(sj.simulate(model, record.u, record.dt)))
 
 
+@pytest.mark.slow  # suite time (55 s, one CLI cascade fit): an opt-in flag; the in-process early-stopping tests above stay in the default suite
 def test_cli_flag_reaches_the_fit_and_is_recorded(record, tmp_path):
     """`smafl fit --early-stopping`: fit.json says so and carries the chunks' validation errors.  Without the flag
     there is no early-stopping entry: tests/test_fit.py::test_cli_fit_writes_fit_json_and_simulate_accepts_it checks
