@@ -126,3 +126,19 @@ def test_quick_run_with_the_real_records_diagnoses_the_sma_branches(tmp_path, re
     diag = json.loads((out / row["folder"] / "diagnosis.json").read_text())
     assert diag["selected"] == row["selected"]
     assert "Real SMA reversal branches: held-out e_r" in (out / "report.md").read_text()
+
+
+def test_the_paper_job_drops_only_fits_misfit_warning():
+    """figs. 9-12 fit the paper's incomplete models on purpose: `fit`'s no-gain warning is dropped there, other log
+    lines pass."""
+    import logging
+
+    from smafl_jax.identify._fit import NO_GAIN  # private: the words the filter keys on
+    from smafl_jax.paper._paper import _ExpectedMisfit  # private: the paper job's own filter
+
+    def rec(msg):
+        return logging.LogRecord("smafl_jax.identify._fit", logging.WARNING, __file__, 1, msg, None, None)
+
+    quiet = _ExpectedMisfit()
+    assert not quiet.filter(rec(f"fit: {NO_GAIN} (lm, 16 steps)"))
+    assert quiet.filter(rec("fit: something else"))

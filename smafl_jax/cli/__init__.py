@@ -99,15 +99,20 @@ def _cleanup(reset=False):
 
 
 def _created_note():
-    """One line per output folder this run created together with missing folders above it (``--out a/b/c`` where
+    """One line when this run created its output folder together with missing folders above it (``--out a/b/c`` where
     ``a`` did not exist): the user may not have meant to create a tree; a folder created alone needs no word."""
     io = sys.modules.get(f"{__package__.rpartition('.')[0]}._io")
     created = [Path(d) for d in getattr(io, "_CREATED_DIRS", [])]
-    for leaf in created:
-        above = [d for d in created if d != leaf and d in leaf.parents]
-        if above and not any(leaf in d.parents for d in created):
-            shown = ", ".join(str(d) for d in sorted(above, key=lambda d: len(d.parts)))
-            print(f"note: created the folder {leaf} and the missing folders above it ({shown})", file=sys.stderr)
+    # the output folder: the deepest created folder on the path of every other (the command's own sub-folders below
+    # it, such as `smafl paper`'s posterior/ and diagnosis_main_loop/, branch off and are not named)
+    on_path = [d for d in created if all(d == e or d in e.parents or e in d.parents for e in created)]
+    if not on_path:
+        return
+    leaf = max(on_path, key=lambda d: len(d.parts))
+    above = sorted((d for d in created if d in leaf.parents), key=lambda d: len(d.parts))
+    if above:
+        shown = ", ".join(str(d) for d in above)
+        print(f"note: created the folder {leaf} and the missing folders above it ({shown})", file=sys.stderr)
 
 
 def _error_text(exc):
