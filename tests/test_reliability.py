@@ -679,6 +679,7 @@ def test_report_figures_have_units_on_every_axis(tmp_path):
     assert axis_label("temperature_front_C") == "temperature front (°C)"
     assert axis_label("length_signal") == "length signal (unit not given)"  # says so instead of inventing one
     assert axis_label("pos", {"pos": "mm"}) == "pos (mm)"
+    assert axis_label("displacement [mm]") == "displacement (mm)" and axis_label("stroke (mm)") == "stroke (mm)"
     rng = np.random.default_rng(1)
     s = rng.normal(size=(400, 2))
     figs = [pb.corner_figure(s, ["thermal.k1", "noise.sigma"], output_unit="mm")]

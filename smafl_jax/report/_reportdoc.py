@@ -11,6 +11,7 @@ import base64
 import html
 import math
 import os
+import re
 from pathlib import Path
 
 from .._io import atomic_write_text
@@ -43,23 +44,34 @@ _SUFFIX_UNITS = {
 }
 
 
-def unit_of(name, units=None):
-    """The unit of column ``name``: from the record's sidecar ``units``, else from a suffix such as ``_mm``
-    (``_V``, ``_C`` ...); None when neither gives one."""
-    if not name:
-        return None
+#: A unit in brackets at the end of a column name: ``displacement [mm]``, ``stroke (mm)``.
+_BRACKET_UNIT = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]+?)\s*[\])]\s*$")
+
+
+def _name_and_unit(name, units=None):
+    """``(name without its unit, unit)`` of column ``name``: the unit from the record's sidecar ``units``, else from
+    brackets (``displacement [mm]``), else from a suffix such as ``_mm`` (``_V``, ``_C`` ...); ``(name, None)`` when
+    none gives one."""
+    name = str(name)
     if units and units.get(name):
-        return str(units[name])
-    base, sep, suffix = str(name).rpartition("_")
-    return _SUFFIX_UNITS.get(suffix) if sep and base else None
+        return name, str(units[name])
+    bracket = _BRACKET_UNIT.match(name)
+    if bracket and bracket.group(1):
+        return bracket.group(1), bracket.group(2)
+    base, sep, suffix = name.rpartition("_")
+    unit = _SUFFIX_UNITS.get(suffix) if sep and base else None
+    return (base, unit) if unit else (name, None)
+
+
+def unit_of(name, units=None):
+    """The unit of column ``name`` (sidecar, brackets or suffix: `_name_and_unit`); None when none gives one."""
+    return _name_and_unit(name, units)[1] if name else None
 
 
 def axis_label(name, units=None, *, prefix=""):
-    """An axis label with a unit: ``displacement (mm)`` for ``displacement_mm``; a name without a known unit
-    says so (``displacement (unit not given)``) instead of pretending to have one."""
-    name = str(name or "output")
-    unit = unit_of(name, units)
-    base = name.rpartition("_")[0] if unit and not (units and units.get(name)) else name
+    """An axis label with a unit: ``displacement (mm)`` for ``displacement_mm`` or ``displacement [mm]``; a name
+    without a known unit says so (``displacement (unit not given)``) instead of pretending to have one."""
+    base, unit = _name_and_unit(name or "output", units)
     text = f"{prefix}{base.replace('_', ' ')}"
     return f"{text} ({unit})" if unit else f"{text} (unit not given)"
 

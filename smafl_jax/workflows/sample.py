@@ -192,16 +192,10 @@ def _where_untrained(post, target, i, held, sampled) -> str | None:
 
 
 def _unit(rec) -> str | None:
-    """The unit of ``rec``'s output column: the sidecar's, a suffix (``_mm``) or brackets (``displacement [mm]``)."""
-    import re
-
+    """The unit of ``rec``'s output column: the sidecar's, brackets (``displacement [mm]``) or a suffix (``_mm``)."""
     from ..report._reportdoc import unit_of
 
-    unit = unit_of(rec.output_name, getattr(rec, "units", None))
-    if unit is None:
-        m = re.search(r"[\[(]\s*([^\])]+?)\s*[\])]\s*$", str(rec.output_name or ""))
-        unit = m.group(1) if m else None
-    return unit
+    return unit_of(rec.output_name, getattr(rec, "units", None))
 
 
 def _unconstrained(post, target, i, mask, fq, sigma, sampled, y_span=None) -> str | None:
