@@ -78,11 +78,12 @@ class Recalibrated(eqx.Module):
         """The input the wrapped model sees: ``input_gain * u + input_offset``."""
         return self.input_gain * u + self.input_offset
 
-    def simulate(self, u, dt=None):
-        """Re-anchored output for input record ``u`` sampled every ``dt`` seconds."""
+    def simulate(self, u, dt):
+        """Re-anchored output for input record ``u`` sampled every ``dt`` seconds (required, as `sj.simulate` asks of
+        every model that is not a hysteresis model on its own)."""
         return self.model.simulate(self.model_input(u), dt) + self.output_offset
 
-    def __call__(self, u, dt=None):
+    def __call__(self, u, dt):
         return self.simulate(u, dt)
 
     def for_record(self, i: int) -> Recalibrated:
