@@ -167,6 +167,12 @@ def test_simulate_compiles_once_per_shape(rng):
     casc2 = eqx_set_gains(casc, rng)
     sj.simulate(casc2, random_reversals(rng, 256), 0.5)
     assert len(TRACES) == 1
+    # nor plain floats set by tree_at (a non-array leaf is static under filter_jit: it compiled once per value)
+    import equinox as eqx
+
+    for k1 in (0.03, 0.04, 0.05):
+        sj.simulate(eqx.tree_at(lambda m: m.thermal.k1, casc, k1), random_reversals(rng, 256), 0.5)
+    assert len(TRACES) == 1
     sj.simulate(casc, random_reversals(rng, 300), 0.5)  # a new shape compiles once more
     assert len(TRACES) == 2
 

@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
+from ..models._simulate import check_sample_time, scalar_leaves_as_arrays
 from ..models._thermal import thermal_step
 
 __all__ = [
@@ -312,12 +313,11 @@ def _metrics(loop, dt):
 
 
 def _check_dt(dt):
+    """``dt`` as a float64 scalar: checked in Python when concrete (`check_sample_time`), by `eqx.error_if` when traced
+    (a user's own `jax.jit` / `jax.grad` around the closed loop; a Python check of a tracer raised there)."""
+    check_sample_time(dt)
     dt = jnp.asarray(dt, dtype=jnp.float64)
-    if dt.ndim != 0:
-        raise ValueError(f"dt must be a scalar, got shape {dt.shape}")
-    if not float(dt) > 0:
-        raise ValueError(f"dt must be > 0, got {float(dt)}")
-    return dt
+    return eqx.error_if(dt, ~(dt > 0), "dt must be > 0") if isinstance(dt, jax.core.Tracer) else dt
 
 
 def simulate_closed_loop(loop: ClosedLoop, dt: float) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -329,12 +329,12 @@ def simulate_closed_loop(loop: ClosedLoop, dt: float) -> tuple[dict[str, Any], d
     """
     if np.ndim(loop.reference) != 1:
         raise ValueError(f"reference must be 1-D for a single run, got shape {np.shape(loop.reference)}; use smafl_jax.sweep")
-    return _simulate(loop, _check_dt(dt))
+    return _simulate(scalar_leaves_as_arrays(loop), _check_dt(dt))
 
 
 def closed_loop_metrics(loop: ClosedLoop, dt: float) -> dict[str, Any]:
     """Metrics only (accumulated inside the scan, no trajectories stored): what sweeps use."""
-    return _metrics(loop, _check_dt(dt))
+    return _metrics(scalar_leaves_as_arrays(loop), _check_dt(dt))  # a float set by tree_at would compile per value
 
 
 @eqx.filter_jit

@@ -30,6 +30,7 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from .. import _config  # noqa: F401
+from ..models._simulate import scalar_leaves_as_arrays
 from ._control import ClosedLoop, _check_dt, _scan_loop
 from ._distributed import to_host
 
@@ -155,6 +156,7 @@ def sweep(
     total, elapsed_s)`` is called after each chunk.
     """
     dt = _check_dt(dt)
+    base = scalar_leaves_as_arrays(base)  # a float set by tree_at is static under jit: one compile per value
     config, axes, shape, names, values = batch_configs(base, grid, mode)
     n = int(np.prod(shape))
     arrays, static = eqx.partition(config, eqx.is_array)

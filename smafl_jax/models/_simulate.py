@@ -90,6 +90,21 @@ def check_sample_time(dt: Any, what: str = "dt") -> None:
         raise UserInputError(f"{what}: the sample time must be a finite number of seconds > 0, got {float(d)!r}")
 
 
+def scalar_leaves_as_arrays(tree: Any) -> Any:
+    """``tree`` with its Python ``float`` / ``int`` leaves as arrays (float64 for floats); bools and arrays unchanged.
+
+    Why: every model field is an array after construction (the field converters), but ``eqx.tree_at(..., 0.05)`` puts
+    a plain float back, and `eqx.filter_jit` treats a non-array leaf as static, so each new value compiled its own
+    program (session 37 trial 3: 20 values of k1, 13.5 s against 0.02 s; likewise a PID gain in the closed loop)."""
+
+    def convert(x):
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            return x
+        return jnp.asarray(x, dtype=jnp.float64) if isinstance(x, float) else jnp.asarray(x)
+
+    return jax.tree_util.tree_map(convert, tree)
+
+
 def _as_inputs(model, u, dt, ndim, call):
     name = "u" if ndim == 1 else "u (a batch of records)"
     shape_hint = "(one sample per time step)" if ndim == 1 else "(records, samples)"
@@ -136,10 +151,10 @@ def simulate(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> ja
     its own is rate-independent and may omit it.  Bad concrete input raises `UserInputError` before compiling.
     """
     u, dt = _as_inputs(model, u, dt, 1, "sj.simulate(model, u, 0.05)")
-    return _simulate(model, u, dt)
+    return _simulate(scalar_leaves_as_arrays(model), u, dt)
 
 
 def simulate_batch(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> jax.Array:
     """Model outputs ``(B, T)`` for a batch of input records ``(B, T)`` (one `vmap`, one compile); ``dt`` as in `simulate`."""
     u, dt = _as_inputs(model, u, dt, 2, "sj.simulate_batch(model, u, 0.05)")
-    return _simulate_batch(model, u, dt)
+    return _simulate_batch(scalar_leaves_as_arrays(model), u, dt)
