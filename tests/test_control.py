@@ -227,6 +227,21 @@ def test_sweep_matches_single_runs_and_shapes(truth):
     assert np.isclose(res2.metrics["e_mean_mm"][1], float(closed_loop_metrics(one, dt)["e_mean_mm"]), rtol=1e-10)
 
 
+def test_sweeps_of_nearby_sizes_share_one_program(truth):
+    """A sweep smaller than one chunk runs at its size rounded up (`_rounded_up`): a 10x10 grid after a 12x9 one (both
+    112 configurations) compiles no new closed-loop program; each new size compiled its own before (1.4 s, session 37)."""
+    from smafl_jax.control import _sweep  # private: the jitted chunk runner whose compiled programs are counted
+
+    base = ClosedLoop(plant=truth, pid=PID(kp=20.0, ki=8.0), reference=jnp.asarray(sine_reference(2, 0.05)))
+    first = sweep(base, 0.05, {"pid.kp": np.linspace(5, 30, 12), "pid.ki": np.linspace(1, 9, 9)})
+    programs = _sweep._run_partitioned._cached._cache_size()
+    second = sweep(base, 0.05, {"pid.kp": np.linspace(5, 30, 10), "pid.ki": np.linspace(1, 9, 10)})
+    assert first.shape == (12, 9) and second.shape == (10, 10)
+    assert _sweep._run_partitioned._cached._cache_size() == programs
+    one = eqx.tree_at(lambda c: (c.pid.kp, c.pid.ki), base, (jnp.asarray(30.0), jnp.asarray(9.0)))
+    assert np.isclose(second.metrics["rmse_mm"][-1, -1], float(closed_loop_metrics(one, 0.05)["rmse_mm"]), rtol=1e-10)
+
+
 def test_sweep_bad_inputs(truth):
     base = ClosedLoop(plant=truth, pid=PID(), reference=jnp.zeros(10))
     with pytest.raises(ValueError, match="does not name a field"):

@@ -152,7 +152,9 @@ def sweep(
 
     The configurations run in chunks of ``chunk`` (default: about `CHUNK_STEPS`
     sample steps per chunk, rounded to a multiple of the device count; the last
-    chunk is padded by repeating its last configuration).  ``progress(done,
+    chunk is padded by repeating its last configuration; a sweep smaller than a
+    chunk runs at its size rounded up, so sweeps of nearby sizes share one
+    compiled program).  ``progress(done,
     total, elapsed_s)`` is called after each chunk.
     """
     dt = _check_dt(dt)
@@ -166,7 +168,9 @@ def sweep(
     size = int(chunk) if chunk is not None else max(1, CHUNK_STEPS // max(n_time, 1))
     if size < 1:
         raise ValueError(f"chunk must be >= 1, got {chunk}")
-    size = -(-min(size, n) // n_dev) * n_dev
+    if n < size:  # a sweep smaller than one chunk: its size rounded up, so sweeps of nearby sizes share one program
+        size = _rounded_up(n)
+    size = -(-size // n_dev) * n_dev
 
     flat_x, tdef = jax.tree.flatten(arrays)
     flat_ax = tdef.flatten_up_to(ax_arrays)
@@ -194,6 +198,13 @@ def sweep(
             progress(hi, n, time.monotonic() - t0)
     metrics = {k: np.concatenate([p[k] for p in parts]).reshape(shape) for k in parts[0]}
     return SweepResult(metrics, shape, names, values)
+
+
+def _rounded_up(n: int) -> int:
+    """``n`` rounded up to a multiple of 2**(bits - 3): at most 25 % padding, four chunk shapes per doubling of the
+    sweep size (each new size compiled its own program: 1.4 s for a 12x10 grid after a 10x10 one, session 37)."""
+    step = 1 << max(int(n).bit_length() - 3, 0)
+    return -(-int(n) // step) * step
 
 
 @eqx.filter_jit
