@@ -232,3 +232,19 @@ def test_refinement_that_does_not_lower_the_loss_says_so(rng, eupi, cascade, cap
         res = sj.fit(off, (u, y), init=None, max_steps=20)
     assert res.loss < res.init_loss and res.info["refinement_lowered_loss"] is True
     assert "did not lower" not in res.message and not _no_gain_lines(caplog)
+
+
+def test_a_stack_of_models_is_refused_with_the_vmap_recipe(cascade):
+    """`sj.stack_models` output passed to `sj.simulate` / `sj.simulate_batch`: a clear error that names the recipe (it
+    failed deeper down with a message about a joint fit's record starts, or a broadcasting TypeError)."""
+    import jax
+    import jax.numpy as jnp
+
+    models = sj.stack_models([cascade, cascade, cascade])
+    u = np.linspace(0.0, 4.0, 50)
+    with pytest.raises(sj.UserInputError, match=r"a stack of 3 models .*jax\.vmap\(sj\.simulate"):
+        sj.simulate(models, u, 0.1)
+    with pytest.raises(sj.UserInputError, match="a stack of 3 models"):
+        sj.simulate_batch(models, np.stack([u, u]), 0.1)
+    ys = jax.vmap(sj.simulate, in_axes=(0, None, None))(models, jnp.asarray(u), 0.1)  # the recipe works
+    np.testing.assert_allclose(np.asarray(ys[1]), np.asarray(sj.simulate(cascade, u, 0.1)), rtol=1e-12, atol=1e-14)

@@ -18,7 +18,7 @@ from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
 from .._errors import UserInputError
-from ._hysteresis import hysteresis_of
+from ._hysteresis import hysteresis_of, thermal_of
 
 __all__ = ["simulate", "simulate_batch"]
 
@@ -140,6 +140,15 @@ def _as_inputs(model, u, dt, ndim, call):
             )
         dt = UNUSED_DT
     check_sample_time(dt)
+    k1 = getattr(thermal_of(model), "k1", None)
+    if k1 is not None and not _is_traced(k1) and jnp.ndim(k1) > 0:
+        # a stack of models (sj.stack_models) failed deeper down with a message about a joint fit's record starts, or a
+        # broadcasting TypeError (session 37 trial 3)
+        raise UserInputError(
+            f"model: this {type(model).__name__} is a stack of {jnp.shape(k1)[0]} models (its thermal rate k1 has shape "
+            f"{jnp.shape(k1)}; one model's is a scalar): run a batch of models with "
+            "jax.vmap(sj.simulate, in_axes=(0, None, None))(models, u, dt)"
+        )
     # dt goes in as an array so a new sample time never triggers a recompile.
     return u, jnp.asarray(dt, dtype=jnp.float64)
 
