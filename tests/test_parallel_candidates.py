@@ -39,6 +39,7 @@ def _without_seconds(doc):
     return [{k: v for k, v in c.items() if k != "seconds"} for c in choice["candidates"]], choice["chosen"]
 
 
+@pytest.mark.slow  # suite time (18 s, two auto fits); overlap, order, errors and per-thread progress stay by default
 def test_threads_give_the_results_of_one_after_another(tmp_path, monkeypatch):
     # a quasi-static drive record (10 s per sample): the static classes join after the first candidate, on the pool too
     rec = _voltage_record(tmp_path, 5, 300, 10.0)

@@ -42,6 +42,7 @@ def _rows(table):
     return [{k: v for k, v in row.items() if k != "seconds"} for row in table]
 
 
+@pytest.mark.slow  # suite time (23 s, three Preisach screenings); the memo key is checked by default below
 def test_second_class_on_the_same_grid_reuses_the_screening(record, monkeypatch):
     n = len(record)
     w, v = [np.r_[np.ones(n - 300), np.zeros(300)]], [np.r_[np.zeros(n - 300), np.ones(300)]]
