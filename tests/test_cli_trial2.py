@@ -161,6 +161,28 @@ def test_reference_out_of_reach_is_warned_with_the_range_the_loop_really_reaches
     assert not any("out of reach" in w for w in inside.warnings)
 
 
+def test_sweep_warns_before_it_runs_when_the_reference_is_out_of_reach_at_the_largest_swept_umax(narrow, tmp_path):
+    """The sweep ranks gains on the reference it is given: one the plant cannot reach ranks them by how they saturate.
+    The reach is taken at the largest swept umax, so a reference reachable only with the larger limits is not warned."""
+    from smafl_jax.control import reachable_output
+
+    k1 = float(sj.load_model(TRUTH).thermal.k1)
+    n = int(6.0 / k1 / 0.1)
+    kw = {"controller": "pid", "dt": 0.1, "progress": False}
+    lo3, hi3 = reachable_output(sj.load_model(narrow), 3.0)
+    _, hi5 = reachable_output(sj.load_model(narrow), 5.0)
+    between = np.full(n, 0.5 * (hi3 + hi5))  # out of reach at 3 V, within reach at 5 V
+    swept = sj.run_sweep("umax=3,5", "kp=1,2", narrow, reference=between, out=tmp_path / "s", **kw)
+    assert swept.settings["reference_check"]["checked"] and not any("out of reach" in w for w in swept.warnings)
+    low = sj.run_sweep("umax=2,3", "kp=1,2", narrow, reference=between, out=tmp_path / "l", **kw)
+    assert low.warnings[0].endswith("(at the largest swept umax, 3 V)") and f"{n} of {n} reference samples" in low.warnings[0]
+    written = json.loads(low.files["metrics.json"].read_text())["settings"]["reference_check"]
+    assert written["n_above"] == n and written["drive_range_V"] == [0.0, 3.0]
+    fixed = sj.run_sweep("kp=1,2", "ki=0,0.1", narrow, reference=between, out=tmp_path / "f", umax=3.0, **kw)
+    assert "out of reach" in fixed.warnings[0] and "largest swept" not in fixed.warnings[0]
+    assert 0.5 * (hi3 + hi5) > hi3 > lo3
+
+
 def test_control_cli_notes_the_default_umax_and_created_folders_and_names_a_nan_row(narrow, tmp_path, capsys):
     ref = tmp_path / "ref.csv"
     t = np.arange(40) * 0.05
