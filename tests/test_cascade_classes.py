@@ -59,6 +59,7 @@ def test_build_model_puts_the_class_behind_the_thermal_lag(rng):
         build_model("cascade-preisach", neg)
 
 
+@pytest.mark.slow  # suite time (29-94 s on 2 cores); the default suite fits a Preisach cascade in test_protocol_dispatch
 def test_preisach_cascade_fit_is_the_profiled_start_and_predicts_held_out():
     rec = _record(np.random.default_rng(1))  # a seed whose held-out block stays on trained branches (coverage 0.97)
     model, doc, _ = fit_record(rec, model="cascade-preisach", orientation="rises", memory="rule", refit=False)
@@ -73,13 +74,19 @@ def test_preisach_cascade_fit_is_the_profiled_start_and_predicts_held_out():
     assert float(model.thermal.k1) == pytest.approx(0.4, rel=0.25)
     assert doc["metrics"]["train"]["rmse"] < 0.003
     assert doc["metrics"]["validation"]["rmse"] < 0.02 * np.ptp(rec.y)
-    # an EUPI cascade keeps its joint refinement (the rule `fit_record` applies; a whole EUPI cascade fit here cost the
-    # suite ~15 s, and every EUPI fit test runs the refinement)
+
+
+def test_only_the_eupi_cascade_gets_a_joint_refinement():
+    """The rule `fit_record` applies (the fit above checks it on a fitted Preisach cascade; this one runs by default):
+    an EUPI cascade keeps its joint refinement, a Preisach cascade declares its profiled start the fit."""
     from smafl_jax.report._report_fit import joint_steps  # private: the refinement rule fit_record applies
 
+    rec = _record(np.random.default_rng(1))
     notes = []
     assert joint_steps(build_model("cascade", rec), 3, notes) == 3 and notes == []
-    assert joint_steps(model, 3, notes) == 0 and notes[0].startswith("no joint refinement: Preisach")
+    preisach = build_model("cascade-preisach", rec)
+    assert type(preisach.hysteresis) is Preisach
+    assert joint_steps(preisach, 3, notes) == 0 and notes[0].startswith("no joint refinement: Preisach")
 
 
 @pytest.mark.slow  # suite time: about 60 s more than the split-only fit above (the whole-record screening and refit)
