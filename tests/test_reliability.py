@@ -375,8 +375,8 @@ def test_heartbeat_reports_elapsed_time_while_a_phase_runs():
     assert quiet.getvalue() == ""
 
 
-def _interrupt_when(cmd, marker, timeout=60):
-    """Run ``cmd``, send SIGINT once ``marker`` appears on stderr (the command is then busy); return (rc, stderr after)."""
+def _interrupt_when(cmd, marker, timeout=60, sig=signal.SIGINT):
+    """Run ``cmd``, send ``sig`` once ``marker`` appears on stderr (the command is then busy); return (rc, stderr after)."""
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=ENV, preexec_fn=_default_sigint)
     seen = b""
     try:
@@ -385,7 +385,7 @@ def _interrupt_when(cmd, marker, timeout=60):
             if not ch:
                 break
             seen += ch
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
         try:
             rest = proc.communicate(timeout=timeout)[1].decode(errors="replace")
         except subprocess.TimeoutExpired:
@@ -457,6 +457,39 @@ def test_ctrl_c_ends_the_process_even_when_the_interrupt_is_lost(tmp_path):
     assert rest.strip().splitlines() == ["smafl control: interrupted"], rest
     assert 2.0 < time.monotonic() - t0 < 25  # ended by the watchdog (INTERRUPT_GRACE_S = 3 s after the Ctrl-C)
     assert not (out / ".half.tmp").exists()  # the temporary file of the unfinished write is removed
+
+
+_TERMINATED = """
+import sys, time
+from pathlib import Path
+from smafl_jax import cli, _io  # private: marks an atomic write in flight (_IN_FLIGHT)
+from smafl_jax.cli import control
+
+def busy(args):
+    out = _io.prepare_out_dir(args.out, announce=False)
+    tmp = out / ".half.tmp"  # an atomic write in progress when the SIGTERM comes
+    tmp.write_text("half")
+    _io._IN_FLIGHT.add(str(tmp))
+    print("busy", file=sys.stderr, flush=True)
+    while True:
+        time.sleep(0.05)
+
+control.run = busy
+sys.argv = ["smafl", "control", "--out", sys.argv[1]]
+sys.exit(cli.main())
+"""
+
+
+def test_sigterm_ends_the_run_as_ctrl_c_does_with_exit_143(tmp_path):
+    """``kill`` / ``timeout`` / a batch scheduler send SIGTERM: Python's default ended the process at once and left the
+    created output folder and the temporary file of an unfinished write behind (new-user trial)."""
+    out = tmp_path / "a" / "o"
+    cmd = [sys.executable, "-c", _TERMINATED, str(out)]
+    rc, before, rest = _interrupt_when(cmd, "busy", timeout=30, sig=signal.SIGTERM)
+    assert "busy" in before
+    assert rc == 143, rest
+    assert rest.strip().splitlines() == ["smafl control: terminated"], rest
+    assert not (tmp_path / "a").exists()  # the folders this run created, and the temporary file in them, are gone
 
 
 def test_usage_errors_are_one_line(capsys):

@@ -767,21 +767,27 @@ def _hdf_backend(path, name, read_only=False):
 
 @contextlib.contextmanager
 def _interrupt_deferred():
-    """Hold a Ctrl-C (SIGINT) until the block has run, then raise it: for short writes that must not be cut in two.
+    """Hold a Ctrl-C (SIGINT) or a SIGTERM until the block has run, then act on it: for short writes that must not be
+    cut in two.
 
-    Only in the main thread while Python's default handler is installed (elsewhere nothing changes)."""
+    Only in the main thread, and only signals with a Python handler (Python's SIGINT handler, the CLI's SIGTERM
+    handler): elsewhere nothing changes."""
     main = threading.current_thread() is threading.main_thread()
-    if not main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+    held = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)} if main else {}
+    held = {s: h for s, h in held.items() if callable(h)}  # SIG_DFL / SIG_IGN are not Python handlers
+    if not held:
         yield
         return
     pending = []
-    signal.signal(signal.SIGINT, lambda *args: pending.append(args))
+    for s in held:
+        signal.signal(s, lambda *args: pending.append(args))
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        for s, h in held.items():
+            signal.signal(s, h)
     if pending:
-        raise KeyboardInterrupt
+        held[pending[0][0]](*pending[0])  # the handler raises (KeyboardInterrupt) as it would have in the block
 
 
 def _backend_ok(path, name):

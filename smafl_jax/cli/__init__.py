@@ -7,7 +7,7 @@ without importing JAX.
 
 Exit codes: 0 success; 2 a user error (bad input, an output path that cannot
 be written), printed as one line ``smafl CMD: error: ...`` without a
-traceback; 130 interrupted (Ctrl-C).  After an error or an interrupt, output
+traceback; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM).  After an error or an interrupt, output
 folders this run created and left empty are removed.
 """
 
@@ -184,21 +184,29 @@ def _interrupted_text(name):
             note = _run["note"]()
         except Exception:  # a faulty note must not stop the interrupt from ending the run
             note = None
-    return f"{name}: interrupted" + (f"; {note}" if note else "")
+    word = "terminated" if _run.get("terminated") else "interrupted"
+    return f"{name}: {word}" + (f"; {note}" if note else "")
+
+
+def _on_terminate(signum, frame):
+    """SIGTERM (``kill``, ``timeout``, a batch scheduler) ends the run as Ctrl-C does: its empty output folders and
+    temporary files removed, one line, exit 143 (Python's default for SIGTERM ends at once and left them behind)."""
+    _run["terminated"] = True
+    raise KeyboardInterrupt
 
 
 def _interrupted_exit(name):
     """Clean up, say so and end the process with 130 (once, from whichever thread gets here first)."""
     if not _exit_lock.acquire(blocking=False):
         return
+    _remove_temporary_files()  # first: a folder holding an unfinished write's temporary file is not empty
     _cleanup()
-    _remove_temporary_files()
     try:
         print(_interrupted_text(name), file=sys.stderr)
     except (OSError, ValueError):
         pass
     _flush()
-    os._exit(130)
+    os._exit(143 if _run.get("terminated") else 130)
 
 
 def _remove_temporary_files():
@@ -233,7 +241,9 @@ def _install_interrupt_watchdog(name):
                 data = os.read(rfd, 64)
             except OSError:
                 return
-            if signal.SIGINT not in data:
+            if signal.SIGTERM in data:
+                _run["terminated"] = True
+            elif signal.SIGINT not in data:
                 continue
             if first is not None:
                 _interrupted_exit(name)  # second Ctrl-C
@@ -270,10 +280,11 @@ def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     command = _command_of(argv)
     name = f"smafl {command}" if command else "smafl"
-    _run.update(argv=list(argv), note=None)
+    _run.update(argv=list(argv), note=None, terminated=False)
     _cleanup(reset=True)
     if standalone:
         _install_interrupt_watchdog(name)
+        signal.signal(signal.SIGTERM, _on_terminate)
     try:
         parser = build_parser(command)
         args = parser.parse_args(argv)
@@ -300,8 +311,8 @@ def main(argv=None):
     except KeyboardInterrupt:
         if standalone:
             _interrupted_exit(name)
-        _cleanup()
         _remove_temporary_files()
+        _cleanup()
         print(_interrupted_text(name), file=sys.stderr)
         return 130
 
