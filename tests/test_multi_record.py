@@ -187,7 +187,28 @@ def test_loro_verdict_needs_most_records_not_just_the_mean():
     assert "dominated by record d" in _dominant_fold(folds)
     v = loro_sentences([fold("a", 1.0, 2.0), fold("b", 1.0, 2.0), fold("c", 3.0, 2.9)])
     assert all(s.startswith("the model beats") and "2 of 3 records" in s for s in v)
+    assert not any("worst-case" in s for s in v)  # e_r lower on 2 of 3 as well
     assert _dominant_fold(folds[:3]) is None
+    # lower RMSE on most records but a higher worst-case error on most: the verdict says both
+    mixed = [fold("a", 1.0, 2.0), fold("b", 1.0, 2.0), fold("c", 3.0, 2.9)]
+    for f in mixed:
+        f["baselines"]["static_poly"] = {**f["baselines"]["static_poly"], "e_r_percent": 0.5 * f["model"]["e_r_percent"]}
+    poly = loro_sentences(mixed)[0]
+    assert "beats baseline static_poly in RMSE" in poly and "lower e_r on 0 of 3" in poly
+    assert poly.endswith("but its worst-case error e_r is higher on 3 of 3 records")
+
+
+def test_loro_table_has_a_median_row_of_the_records_ratios():
+    from smafl_jax.identify._multi_record import _median_row  # private: the LORO table's median row
+
+    def fold(m, b):
+        met = lambda r: {"rmse": r, "e_r_percent": 10 * r}
+        return {"record": "r", "model": met(m), "baselines": {"static_poly": met(b), "first_order_lag": met(b)}}
+
+    row = _median_row([fold(1.0, 2.0), fold(2.0, 2.0), fold(20.0, 100.0)])  # ratios 0.5, 1, 0.2
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[0] == "**median**" and cells[1] == "2" and cells[2] == "20"
+    assert cells[-1] == "0.5 (of the records' ratios)"
 
 
 def test_start_mismatch_flags_a_record_that_starts_warm_among_cold_ones():
