@@ -22,6 +22,24 @@ TIME_HELP = (
     "a unit ms or us in its name ('time [ms]', 't_ms') or in the sidecar's units is converted to seconds"
 )
 
+WINDOW_HELP = (
+    "keep only the samples with START <= time <= END (seconds on the record's time axis; either may be empty: "
+    "'8.07:' cuts a faulty start, ':120' a faulty end); every record of the run, said in the outputs"
+)
+
+
+def add_window_argument(p):
+    """``--window START:END``: how a user acts on a data-check finding without editing the file."""
+    p.add_argument("--window", default=None, metavar="START:END", help=WINDOW_HELP)
+
+
+def apply_window(records, text):
+    """``records`` cut to the ``--window`` (unchanged without one); the cut is in each record's ``processing``."""
+    from smafl_jax.data._data import parse_window
+
+    w = parse_window(text)
+    return records if w is None else [r.window(*w) for r in records]
+
 
 def add_parser(sub):
     p = sub.add_parser("check", help="check measured records for faults (offset jumps, spikes, flat runs, gaps, odd runs)")
@@ -35,6 +53,7 @@ def add_parser(sub):
         metavar="DT",
         help="put irregular time stamps on a uniform DT-second grid (linear interpolation; 'auto' = median step) before checking",
     )
+    add_window_argument(p)
     p.add_argument("--json", default=None, metavar="OUT.json", help="also write the records and findings to this JSON file")
     p.set_defaults(func=run)
     return p
@@ -63,7 +82,7 @@ def run(args):
     resample = _resample_arg(args.resample)
     kw = {"time": args.time}
     kw.update({"resample": resample} if resample is not None else {"irregular": "keep"})
-    records = load_records(args.data, args.input, args.output, **kw)
+    records = apply_window(load_records(args.data, args.input, args.output, **kw), args.window)
     findings = check_records(records)
     for r in records:
         unit = {c: f" {u}" for c, u in r.units.items()}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .check import TIME_HELP
+from .check import TIME_HELP, add_window_argument, apply_window
 
 
 def add_parser(sub):
@@ -19,6 +19,7 @@ def add_parser(sub):
     p.add_argument("--input", default=None, help="input column (default: sidecar, then a common name)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, then a common name)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
+    add_window_argument(p)
     p.add_argument(
         "--out",
         required=True,
@@ -99,7 +100,7 @@ def run(args):
     from ..data import load_records
     from ..diagnosis._diagnose import check_record, diagnose
 
-    records = load_records(args.data, input=args.input, output=args.output, time=args.time)
+    records = apply_window(load_records(args.data, input=args.input, output=args.output, time=args.time), args.window)
     for rec in records:
         check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)

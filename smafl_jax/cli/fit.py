@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from .._choices import GAIN_PRIOR
-from .check import TIME_HELP
+from .check import TIME_HELP, add_window_argument, apply_window
 
 
 def add_parser(sub):
@@ -35,6 +35,7 @@ def add_parser(sub):
     p.add_argument("--input", default=None, help="input column (default: sidecar, else a common name such as voltage_V)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, else e.g. displacement_mm)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
+    add_window_argument(p)
     p.add_argument(
         "--model",
         choices=MODELS,
@@ -147,6 +148,7 @@ def run(args):
     if args.poly_order < 1:
         raise UserInputError(f"--poly-order must be >= 1, got {args.poly_order}")
     records = load_records(args.data, args.input, args.output, time=args.time, resample=parse_resample(args.resample))
+    records = apply_window(records, args.window)
     note = _accelerator_note()
     if note:
         print(note, file=sys.stderr)

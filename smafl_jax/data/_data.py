@@ -56,6 +56,29 @@ def load_record(
     )
 
 
+def parse_window(text: str | None) -> tuple[float | None, float | None] | None:
+    """The ``--window START:END`` option (seconds on the record's time axis, either side may be empty): None or
+    ``(start, end)``; `UserInputError` otherwise."""
+    import math
+
+    from .._errors import UserInputError
+
+    if text is None:
+        return None
+    parts = str(text).split(":")
+    if len(parts) != 2 or not any(p.strip() for p in parts):
+        raise UserInputError(f"--window needs START:END in seconds (either may be empty, e.g. 8.07: or :120), got {text!r}")
+    try:
+        lo, hi = (float(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise UserInputError(f"--window needs START:END in seconds, got {text!r}") from None
+    if any(v is not None and not math.isfinite(v) for v in (lo, hi)):
+        raise UserInputError(f"--window needs finite times, got {text!r}")
+    if lo is not None and hi is not None and not lo < hi:
+        raise UserInputError(f"--window START must be before END, got {text!r}")
+    return lo, hi
+
+
 def parse_resample(text: str | float | None) -> float | str | None:
     """The ``--resample`` option: None, ``"auto"`` or a positive number of seconds (`UserInputError` otherwise)."""
     import math

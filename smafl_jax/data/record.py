@@ -75,6 +75,31 @@ class Record:
             extra={k: v[index] for k, v in self.extra.items()},
         )
 
+    def window(self, start: float | None = None, end: float | None = None, *, min_samples: int = 10) -> Record:
+        """The samples with ``start <= time <= end`` (seconds on the record's own time axis; None = open), said in
+        ``processing``: how a user acts on a data-check finding ("cut the samples before 8.07 s") without editing
+        the file.  `DataError` when the window keeps fewer than ``min_samples`` samples."""
+        where = self.path or f"<arrays {self.name}>"
+        t0 = -np.inf if start is None else float(start)
+        t1 = np.inf if end is None else float(end)
+        if not t0 < t1:
+            raise DataError(where, f"the window [{t0:g}, {t1:g}] s is empty: its start must be before its end")
+        keep = (self.time >= t0) & (self.time <= t1)
+        n = int(keep.sum())
+        span = f"[{self.time[0]:.6g}, {self.time[-1]:.6g}] s"
+        if n < min_samples:
+            raise DataError(
+                where,
+                f"the window [{t0:g}, {t1:g}] s keeps {n} of {len(self)} samples (the record spans {span}); need at least {min_samples}",
+            )
+        if n == len(self):
+            return self
+        cut = self.take(keep)
+        kept = f"[{cut.time[0]:.6g}, {cut.time[-1]:.6g}] s"
+        note = f"kept the window {kept} of {span} ({n} of {len(self)} samples)"
+        gaps = tuple(g for g in self.gaps if g[1] >= cut.time[0] and g[0] <= cut.time[-1])
+        return dataclasses.replace(cut, processing=(*self.processing, note), gaps=gaps)
+
     @classmethod
     def from_arrays(
         cls,
