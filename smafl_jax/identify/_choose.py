@@ -190,10 +190,10 @@ def auto_structure(record):
     if voltage:
         return "eupi", (
             f"input '{record.input_name}' is a voltage but goes down to {float(np.min(record.u)):.3g} V, more than "
-            f"{NEGATIVE_DRIVE_TOLERANCE:.0%} of its maximum below 0; Joule heating needs U >= 0, so static EUPI"
+            f"{NEGATIVE_DRIVE_TOLERANCE:.0%} of its maximum below 0; Joule heating needs U >= 0, so the hysteresis sees it directly (no thermal lag)"
         )
     return "eupi", (
-        f"input '{record.input_name}' is not a drive voltage: the hysteresis sees it directly (static EUPI). If it is a "
+        f"input '{record.input_name}' is not a drive voltage: the hysteresis sees it directly (no thermal lag). If it is a "
         "drive voltage, say so: --model cascade, a column name with 'volt' or ending in '_V', or the unit V in the sidecar "
         '(NAME.json: {"units": {"' + str(record.input_name) + '": "V"}})'
     )
