@@ -237,3 +237,11 @@ def test_start_mismatch_flags_a_record_that_starts_warm_among_cold_ones():
     assert all(r["start_rmse"] < 1.5 * r["rest_rmse"] for r in rows)
     rows, note = start_mismatch(recs, yhat, k1, 0.002)
     assert note.startswith(START_MISMATCH) and " c (first 30 s" in note and " a (" not in note
+
+
+def test_fold_progress_says_the_time_left_from_the_later_folds():
+    from smafl_jax.identify._multi_record import fold_time_left  # private: the fold progress line
+
+    # 4 records: the first fold compiles (30 s), the second runs at 10 s; 2 folds and a joint fit (4/3 of a fold) left
+    assert fold_time_left([30.0, 10.0], 4) == ("fold 2/4 took 10 s; about 33 s left (2 fold(s) and the joint fit on all records)")
+    assert fold_time_left([30.0], 2).startswith("fold 1/2 took 30 s; about 1 min 30 s left (1 fold(s)")

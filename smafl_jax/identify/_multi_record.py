@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import UserInputError
+from .._progress import format_seconds
 from .._progress import say as progress_line
 from ..models._hysteresis import hysteresis_of, record_model, thermal_of
 from ..models._range import value_range
@@ -354,6 +355,19 @@ def loro_sentences(folds: list[dict]) -> list[str]:
     return out
 
 
+def fold_time_left(seconds: list[float], n_records: int) -> str:
+    """``fold k/n took T; about L left``: the folds still to run and the joint fit on all records (a fold's fit on
+    ``n_records / (n_records - 1)`` times the data).  The first fold compiles: from the second on, the later folds'
+    median is the rate (a new-user trial's 9-record fit ran 7 min with nothing but "fold k/9" to go by)."""
+    done = len(seconds)
+    rate = float(np.median(seconds[1:])) if done > 1 else seconds[0]
+    left = rate * (n_records - done) + rate * n_records / max(n_records - 1, 1)
+    return (
+        f"fold {done}/{n_records} took {format_seconds(seconds[-1])}; about {format_seconds(left)} left "
+        f"({n_records - done} fold(s) and the joint fit on all records)"
+    )
+
+
 def _median_row(folds: list[dict]) -> str:
     """The LORO table's median row: one record cannot carry a median (the mean row above it can)."""
 
@@ -504,6 +518,7 @@ def _fit_records_structure(
                 + "; baselines "
                 + ", ".join(f"{k} RMSE {v['rmse']:.4g}" for k, v in folds[-1]["baselines"].items())
             )
+            say("  " + fold_time_left([f["seconds"] for f in folds], len(records)))
 
     say(f"joint fit on all {len(records)} records")
     t0 = time.perf_counter()
