@@ -49,6 +49,7 @@ from .._errors import UserInputError
 from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ..models._hysteresis import hysteresis_of, record_model, thermal_of
+from ..models._padding import pad_records
 from ..models._simulate import UNUSED_DT, check_sample_time, first_bad, uses_sample_time
 from . import varpro
 from ._gain_prior import check_gain_prior, map_gains
@@ -570,6 +571,7 @@ def fit(
     profile_xatol: float = 1e-7,
     gain_prior: float | None = None,
     stall: bool = True,
+    pad: bool = True,
     progress: bool = False,
 ) -> FitResult:
     """Fit ``model`` to ``data`` (see `as_fit_data`); returns a `FitResult`.
@@ -602,11 +604,15 @@ def fit(
     (``info["gain_prior"]`` says what it changed).  None (the default here): the least-squares gains.
     ``stall``: the Gauss-Newton-type solvers (lm, gauss_newton) also stop once the last `STALL_WINDOW` steps gained
     less than `STALL_MIN_GAIN` in log-likelihood (`StallStop`); False runs them to their own tolerance or ``max_steps``.
+    ``pad``: the compiled programs see each record padded at its end to `smafl_jax.models.bucket_length` samples with
+    weight 0 (`pad_records`), so that records of nearby lengths share one compilation (about 5 s per new length of a
+    3 000-sample cascade fit); the fit is the same (the models are causal; a class with ``causal = False`` is never
+    padded).  False compiles for every record length.
     """
     gain_prior = check_gain_prior(gain_prior)
     res = _fit(
         model, data, dt, solver=solver, trainable=trainable, init=init, max_steps=max_steps, rtol=rtol, atol=atol,
-        weights=weights, k1_grid=k1_grid, profile_xatol=profile_xatol, stall=stall, progress=progress,
+        weights=weights, k1_grid=k1_grid, profile_xatol=profile_xatol, stall=stall, pad=pad, progress=progress,
     )  # fmt: skip
     if gain_prior is None:
         return res
@@ -615,10 +621,12 @@ def fit(
         return res
     feats, nonneg, setw = part
     data = as_fit_data(data, dt, model=model)
+    lengths = [u.shape[0] for u, _, _ in data]
+    data, weights = _padded(res.model, data, _as_weights(weights, data), pad)  # padded rows: weight 0, dropped below
     blocks = [_features(feats, record_model(res.model, i), jnp.asarray(u), jnp.asarray(d)) for i, (u, _, d) in enumerate(data)]
-    if not all(np.all(np.isfinite(np.asarray(A))) for A in blocks):
+    if not all(np.all(np.isfinite(np.asarray(A)[:n])) for A, n in zip(blocks, lengths)):
         return res
-    A, b = _stack_rows(blocks, data, _as_weights(weights, data))
+    A, b = _stack_rows(blocks, data, weights)
     theta, info = map_gains(A, b, nonneg, gain_prior)
     say(
         f"gain prior (kappa {gain_prior:g}): largest operator gain {info['largest_gain_free']:.4g} -> "
@@ -629,11 +637,27 @@ def fit(
     return res._replace(model=model, loss=0.5 * float(len(b)) * info["rmse"] ** 2, info={**(res.info or {}), "gain_prior": info})
 
 
+def _padded(model, data, weights, pad):
+    """``(data, weights)`` padded at the end (`pad_records`) when ``pad`` is on and ``model`` is causal, else as given.
+
+    The class says whether it may be padded (``causal``, default True: every model here, effects included, is causal,
+    as `smafl_jax.models.padded_call` in the diagnosis assumes too)."""
+    if not (pad and getattr(model, "causal", True)):
+        return data, weights
+    return pad_records(data, weights)
+
+
 def _fit(
-    model, data, dt=None, *, solver, trainable, init, max_steps, rtol, atol, weights, k1_grid, profile_xatol, stall, progress
-) -> FitResult:
-    """`fit` without the gain prior."""
+    model, data, dt=None, *, solver, trainable, init, max_steps, rtol, atol, weights, k1_grid, profile_xatol, stall, progress,
+    pad=True,
+) -> FitResult:  # fmt: skip
+    """`fit` without the gain prior.
+
+    The programs see ``padded`` / ``pweights`` (`_padded`: zero-weight samples at the end of each record, dropped by
+    `_stack_rows` and zeroed by `_residuals`); what depends on the record itself (the default k1 grid: its duration;
+    the noise estimate: its outputs) is taken from the records as given."""
     release_if_needed()  # long sessions compile many programs: stay under the memory-map limit (`_compile_cache`)
+    asked = init
     if init not in _INITS:
         raise UserInputError(f"init must be one of {_INITS}, got {init!r}")
     own_start = init is not None  # fit makes its own start (else the caller gave it, and gates on the result itself)
@@ -641,8 +665,10 @@ def _fit(
         raise UserInputError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
     if not (isinstance(max_steps, (int, np.integer)) and max_steps >= 0):
         raise UserInputError(f"max_steps must be an integer >= 0, got {max_steps!r}")
+    template = model
     data = as_fit_data(data, dt, model=model)
     weights = _as_weights(weights, data)
+    padded, pweights = _padded(model, data, weights, pad)
     spec = default_trainable(model) if trainable is None else trainable
     info = {}
     t0 = time.perf_counter()
@@ -658,16 +684,25 @@ def _fit(
             f"initialiser: profiling k1 ({k1_grid if np.ndim(k1_grid) == 0 else len(k1_grid)} candidates, gains by bounded LS)",
             progress,
         )
+        grid = _default_k1_grid(data, k1_grid) if np.ndim(k1_grid) == 0 else k1_grid  # the records' own durations
         model, info["profile"] = init_profile(
-            model, data, weights=weights, k1_grid=k1_grid, xatol=profile_xatol, progress=progress
+            model, padded, weights=pweights, k1_grid=grid, xatol=profile_xatol, progress=progress
         )
     elif init == "linear":
         say("initialiser: bounded least squares for the gains", progress)
-        model = init_linear(model, data, weights=list(weights))
+        model = init_linear(model, padded, weights=list(pweights))
     info["init"] = init
     info["init_seconds"] = time.perf_counter() - t0
-    args = tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d), jnp.asarray(w)) for (u, y, d), w in zip(data, weights))
+    args = tuple((jnp.asarray(u), jnp.asarray(y), jnp.asarray(d), jnp.asarray(w)) for (u, y, d), w in zip(padded, pweights))
     res0 = np.asarray(_residuals_jit(model, args))
+    if padded is not data and not np.all(np.isfinite(res0)):
+        # not finite somewhere: refit unpadded, which names the sample in the records as given (or fits, when only
+        # the padding, the last input held, was not finite)
+        return _fit(
+            template, data, solver=solver, trainable=trainable, init=asked, max_steps=max_steps, rtol=rtol,
+            atol=atol, weights=weights, k1_grid=k1_grid, profile_xatol=profile_xatol, stall=stall, progress=progress,
+            pad=False,
+        )  # fmt: skip
     if not np.all(np.isfinite(res0)):
         k = int(np.flatnonzero(~np.isfinite(res0))[0])
         raise UserInputError(
@@ -804,8 +839,8 @@ def fit_many(
     """Fit one model template to many records or actuators; returns a list of `FitResult` (or the error).
 
     Each entry of ``datasets`` is anything `fit` accepts for one actuator.
-    Records of one shape reuse the same compiled code (one compile per
-    shape); the k1 profile inside each fit is one `vmap` over candidates.
+    Records whose lengths share a `smafl_jax.models.bucket_length` reuse the same compiled code (`fit` pads them; one
+    compile per bucket); the k1 profile inside each fit is one `vmap` over candidates.
     A record that cannot be fitted gives its `UserInputError` in the list
     instead of stopping the batch.  ``progress``: one line per record on the progress logger, shown on
     stderr unless logging is configured (`smafl_jax._progress.shown`).
