@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax._errors import DataError, UserInputError
+from smafl_jax import DataError, UserInputError
 from smafl_jax.cli import main
 from smafl_jax.data import check_records
-from smafl_jax.data._data import parse_window  # the option's parser (no public path: a CLI detail)
+from smafl_jax.data._data import parse_window  # private: the --window option's parser, a CLI detail with no public path
 
 
 def _zeroed_record():
