@@ -11,7 +11,10 @@ trained span, even inside the range (``data.trained_branches``; a wire heated bu
 ``--calibrate START:END`` re-anchors the model on that stretch of the new record (`smafl_jax.recalibrate`:
 input gain and offset, output offset, fitted on the segment only; ``--calibrate-fit`` picks which) and writes
 the re-anchored output; the metrics then cover only the samples after the segment (``scored_from_s``), for the
-raw and the re-anchored model side by side, and the range check applies to the re-anchored input.
+raw and the re-anchored model side by side, and the range check applies to the re-anchored input.  It warns when
+the calibration ends at a bound, when its refinement did not converge, when it fits its own segment no better than the
+raw model, and when the re-anchored output scores worse than the raw one after the segment (the raw output is the
+``_uncalibrated`` column).
 """
 
 from __future__ import annotations
@@ -147,8 +150,9 @@ def _pct(x: float) -> str:
     return f"{x:.2f} %" if np.isfinite(x) else "undefined (constant measured output)"
 
 
-def input_range_check(u, fitted_range, column: str = "input", dt: float | None = None) -> dict:
-    """How far and how often ``u`` leaves ``fitted_range`` (see `smafl_jax.models._range.range_check`)."""
+def input_range_check(u, fitted_range, column: str = "input", dt: float | None = None, t0: float = 0.0) -> dict:
+    """How far and how often ``u`` leaves ``fitted_range`` (see `smafl_jax.models._range.range_check`; ``t0``: the
+    time of the first sample)."""
     from ..models._range import range_check
 
-    return range_check(u, fitted_range, column, dt=dt)
+    return range_check(u, fitted_range, column, dt=dt, t0=t0)

@@ -1515,7 +1515,7 @@ def diagnose(
     strongest = _strongest_correlate(
         residuals["heldout"]["signal_correlations"] if not selected else resid_after(chosen, split, ext_res_te)
     )
-    noise = noise_floor([record.y], base_train=base_tr, base_heldout=base_te, extended_train=ext_tr, extended_heldout=ext_te)
+    noise = noise_floor([record], base_train=base_tr, base_heldout=base_te, extended_train=ext_tr, extended_heldout=ext_te)
     if selected and (noise["extended_train_ratio"] or 0.0) > NOISE_FLOOR_WARN:
         # measured on clean independent records (issue 13): every false selection sat on a base at 2x the noise or more;
         # a true effect brings the fit down to the noise, so misfit left after the selection is worth a warning

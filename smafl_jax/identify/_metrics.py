@@ -18,6 +18,7 @@ __all__ = [
     "metrics",
     "noise_floor",
     "noise_floor_note",
+    "measured_samples",
     "NOISE_FLOOR_WARN",
     "ABOVE_NOISE",
 ]
@@ -28,6 +29,12 @@ __all__ = [
 NOISE_FLOOR_WARN = 2.0
 NOISE_METHOD = (
     "1.4826 MAD of the output's second differences / sqrt(6), per record (white-noise scale; a filtered sensor reads lower)"
+)
+#: Added to `NOISE_METHOD` when a resampled record's gaps held interpolated samples.
+INTERPOLATED_RULE = (
+    "; the samples a resampling interpolated across gaps are left out (a second difference only where none of its three "
+    "samples lies inside a bridged gap: a straight line has no noise); the grid samples between measured stamps closer "
+    "than a gap are interpolations too, and on jittered stamps they still read the noise up to ~1.5x low"
 )
 
 
@@ -83,23 +90,53 @@ def metrics(y: ArrayLike, yhat: ArrayLike) -> dict[str, float]:
     }
 
 
+def measured_samples(record) -> np.ndarray:
+    """Boolean mask of a record's samples that are not interpolated across a gap its resampling bridged.
+
+    ``record.gaps`` holds ``(t_start, t_end)`` of each bridged interval (`data.load.resample_record`); the grid points
+    strictly inside one were filled in by a straight line (the data checks count them the same way).  All True for a
+    record read as written.
+    """
+    t = np.asarray(record.time, dtype=np.float64)
+    ok = np.ones(t.size, bool)
+    for a, b in getattr(record, "gaps", ()) or ():
+        ok &= ~((t > a) & (t < b))
+    return ok
+
+
 def noise_floor(outputs, **scored: dict | None) -> dict:
     """The output's noise SD estimated from the measured outputs alone, and each scored RMSE in units of it.
 
     Why: an RMSE in mm says nothing about whether a fit is done; the same RMSE over the sensor's noise says it (1x: the
-    model explains everything but the noise).  ``outputs``: one measured output array per record (pooled by samples);
-    ``scored``: metric dicts by name (``train=..., validation=...``), each giving ``<name>_ratio`` = its RMSE / SD
-    (None when absent, or when the output is quantised so coarsely that the estimate is 0).
+    model explains everything but the noise).  ``outputs``: one measured output per record (pooled by samples), each an
+    array or a `Record` (its ``y``; the samples interpolated across resampling gaps, `measured_samples`, are left out
+    of the estimate: a record resampled from bursts had 26 % of them and read 2x low); ``scored``: metric dicts by name
+    (``train=..., validation=...``), each giving ``<name>_ratio`` = its RMSE / SD (None when absent, or when the output
+    is quantised so coarsely that the estimate is 0).
     """
     from ..data.checks import noise_scale
 
-    ys = [np.asarray(y, dtype=np.float64) for y in outputs]
+    ys, masks, n_left = [], [], 0
+    for item in outputs:
+        if hasattr(item, "y") and hasattr(item, "time"):  # a Record: its gaps say which samples were filled in
+            if item.y is None:
+                raise ValueError(f"noise_floor: record {item.name!r} has no output")
+            y, ok = np.asarray(item.y, dtype=np.float64), measured_samples(item)
+            n_left += int(ok.size - ok.sum())
+        else:
+            y = np.asarray(item, dtype=np.float64)
+            ok = np.ones(y.shape, bool)
+        ok = ok & np.isfinite(y)  # blank / NaN cells: no second difference across them either
+        ys.append(np.where(ok, y, 0.0))
+        masks.append(ok)
     if not ys:
         raise ValueError("noise_floor needs at least one output record")
-    sds = [noise_scale(y) for y in ys]
-    n = np.array([y.size for y in ys], dtype=np.float64)
-    sd = float(np.sqrt(np.sum(n * np.square(sds)) / np.sum(n)))
-    out: dict = {"sd": sd, "method": NOISE_METHOD}
+    sds = [noise_scale(y, None if ok.all() else ok) for y, ok in zip(ys, masks)]
+    n = np.array([ok.sum() for ok in masks], dtype=np.float64)  # each record weighs by the samples its estimate saw
+    sd = float(np.sqrt(np.sum(n * np.square(sds)) / np.sum(n))) if np.sum(n) > 0 else 0.0
+    out: dict = {"sd": sd, "method": NOISE_METHOD + (INTERPOLATED_RULE if n_left else "")}
+    if n_left:
+        out["n_interpolated_left_out"] = n_left
     if len(ys) > 1:
         out["per_record_sd"] = [float(x) for x in sds]
     for name, m in scored.items():

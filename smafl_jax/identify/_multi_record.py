@@ -567,7 +567,7 @@ def _fit_records_structure(
                 "one thermal start rule is shared by all records (each record starts from it with its own first input); "
                 "a fitted start temperature is not per record"
             )
-    noise = noise_floor([r.y for r in records], train=pooled_train, validation=mean_model)
+    noise = noise_floor(list(records), train=pooled_train, validation=mean_model)
     if noise_floor_note(noise):
         notes.append(noise_floor_note(noise))
     starts = None

@@ -21,6 +21,11 @@ of its start, input offset within 25 % of the record's input span), by ``gain = 
 and ``offset = a0 + B tanh q``: measured on the NiTi records, an unbounded fit on a short segment found
 gains of 0.1 and offsets of -125 degC that matched the segment and wrecked the rest of the run.  A value
 that ends at its bound is named in ``info["at_bound"]`` (the segment does not pin it down).
+
+What the calibration can check itself is said in ``info["warnings"]`` (and logged): a value at its bound, a
+refinement that stopped without converging, and a re-anchored model that fits its own segment no better than the
+raw one (`NOT_IMPROVED`).  Whether it helps after the segment only the rest of the run can tell
+(`after_segment_metrics`).
 """
 
 from __future__ import annotations
@@ -43,7 +48,14 @@ from ..models._constraints import parameter, positive
 from ..models._hysteresis import record_model
 from ..models._simulate import simulate
 
-__all__ = ["Recalibrated", "recalibrate", "segment_indices", "after_segment_metrics", "CALIBRATION_PARAMETERS"]
+__all__ = [
+    "Recalibrated",
+    "recalibrate",
+    "segment_indices",
+    "after_segment_metrics",
+    "CALIBRATION_PARAMETERS",
+    "NOT_IMPROVED",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -59,6 +71,8 @@ MAX_GAIN_RATIO = 1.5
 MAX_INPUT_OFFSET_FRACTION = 0.25
 #: A fitted value this close to its bound (fraction of the half-width, in the tanh coordinate) counts as at the bound.
 _AT_BOUND = 0.99
+#: Start of the warning when the re-anchored model fits its own calibration segment no better than the raw model.
+NOT_IMPROVED = "calibration did not help on its own segment:"
 
 
 @register_model
@@ -212,6 +226,7 @@ def recalibrate(
     max_steps: int = 200,
     max_gain_ratio: float = MAX_GAIN_RATIO,
     max_input_offset: float | None = None,
+    log_warnings: bool = True,
 ) -> tuple[Recalibrated, dict]:
     """Re-anchor ``model`` on ``segment`` of a new record ``(u, y)``: ``(Recalibrated model, info)``.
 
@@ -221,8 +236,10 @@ def recalibrate(
     Only the segment enters the loss; the model runs from the record's first sample through it.
     Bounds (drift, not a refit): the gain stays within ``max_gain_ratio`` of its start, the input
     offset within ``max_input_offset`` of its start (default: 25 % of the input span of ``u``).
-    ``info``: the fitted values, the segment (seconds and samples), its RMSE before and after, and the
-    first sample after the segment (``scored_from_sample``), where a fair score starts.
+    ``info``: the fitted values, the segment (seconds and samples), its RMSE before and after
+    (``segment_improved``: after < before), the first sample after the segment (``scored_from_sample``), where a fair
+    score starts, and ``warnings`` (sentences; logged unless ``log_warnings=False``, for a caller that reports them
+    itself): a value at its bound, a refinement that did not converge, a segment the re-anchoring did not improve.
     """
     names = _check_fit_names(fit)
     if not (math.isfinite(max_gain_ratio) and max_gain_ratio > 1):
@@ -286,6 +303,7 @@ def recalibrate(
     best = {"input_gain": float(g_grid[k]), "input_offset": float(o_grid[k]), "output_offset": float(cs[k])}
     best_loss = float(losses[k])
     n_steps, converged, method = 0, True, "closed form (mean residual)" if names == ("output_offset",) else "grid"
+    lm_kept = False
 
     # 2. joint Levenberg-Marquardt refinement from the best grid point (not needed for the output offset alone)
     if names != ("output_offset",) and max_steps > 0:
@@ -313,7 +331,7 @@ def recalibrate(
         }
         n_steps, converged = int(steps), bool(ok)
         if math.isfinite(loss) and all(math.isfinite(v) for v in cand.values()) and loss <= best_loss:
-            best, best_loss, method = cand, loss, "grid + Levenberg-Marquardt"
+            best, best_loss, method, lm_kept = cand, loss, "grid + Levenberg-Marquardt", True
         else:
             logger.info(
                 "calibration: the Levenberg-Marquardt refinement did not improve on the grid (loss %g vs %g)", loss, best_loss
@@ -326,15 +344,40 @@ def recalibrate(
         at_bound.append("input_gain")
     if "input_offset" in names and abs(best["input_offset"] - start["input_offset"]) >= _AT_BOUND * bound:
         at_bound.append("input_offset")
+    warnings = []
     if at_bound:
-        logger.warning(
-            "calibration: %s ended at its bound (gain ratio %g, input offset +-%g): the segment does not determine it; "
-            "a longer segment or fewer parameters (output_offset only) is safer",
-            ", ".join(at_bound),
-            max_gain_ratio,
-            bound,
+        warnings.append(
+            f"calibration: {', '.join(at_bound)} ended at its bound (gain ratio {max_gain_ratio:g}, input offset "
+            f"+-{bound:.5g}): the segment does not determine it; a longer segment or the output offset alone (Python: "
+            "fit='output_offset'; CLI: --calibrate-fit output_offset) is safer"
+        )
+    if not converged:
+        warnings.append(
+            f"calibration: the Levenberg-Marquardt refinement stopped after {n_steps} steps (limit {int(max_steps)}) without "
+            "converging: "
+            + (
+                "the values are the last it reached, not a settled least-squares optimum of the segment"
+                if lm_kept
+                else "the screened grid point is kept (a coarse value)"
+            )
+            + (
+                f" ({', '.join(at_bound)} at its bound keeps the solver walking toward it)"
+                if at_bound
+                else "; a longer segment or fewer parameters is safer"
+            )
         )
     rmse_after = seg_rmse(best["input_gain"], best["input_offset"], best["output_offset"])
+    # the grid holds the start, so the fit cannot be worse on its segment by construction; no better means it found
+    # nothing to correct there (or the model gives the segment no handle on the parameters): say so, not silently
+    improved = bool(rmse_after < rmse_before)
+    if not improved:
+        warnings.append(
+            f"{NOT_IMPROVED} the re-anchored model fits the calibration segment no better than the raw model (segment RMSE "
+            f"{rmse_before:.4g} -> {rmse_after:.4g}), so the segment gives no evidence that it helps on the rest of the run"
+        )
+    if log_warnings:
+        for text in warnings:
+            logger.warning(text)
     info = {
         "fitted": list(names),
         **{name: best[name] for name in CALIBRATION_PARAMETERS},
@@ -347,6 +390,7 @@ def recalibrate(
         },
         "segment_rmse_before": rmse_before,
         "segment_rmse_after": rmse_after,
+        "segment_improved": improved,
         "scored_from_sample": i1,
         "scored_from_s": t0 + i1 * dt,
         "bounds": {"input_gain_ratio": max_gain_ratio, "input_offset": bound},
@@ -354,6 +398,7 @@ def recalibrate(
         "method": method,
         "n_steps": n_steps,
         "converged": converged,
+        "warnings": warnings,
     }
     logger.info("calibration on samples [%d, %d): %s, segment RMSE %.4g -> %.4g", i0, i1, best, rmse_before, rmse_after)
     return out, info

@@ -54,13 +54,21 @@ def range_tolerance(lo: float, hi: float) -> float:
     return RANGE_TOL * max(float(hi) - float(lo), 0.0)
 
 
-def range_check(values, fitted_range, column: str = "input", *, dt: float | None = None, what: str = "input") -> dict:
+def _when(a: int, b: int, dt: float | None, t0: float) -> str:
+    """``1026.6 s for 0.1 s`` (sample ``a`` at ``t0 + a dt``) with a sample time, else ``sample a for b - a samples``."""
+    return f"{t0 + a * dt:.6g} s for {(b - a) * dt:.3g} s" if dt else f"sample {a} for {b - a} samples"
+
+
+def range_check(
+    values, fitted_range, column: str = "input", *, dt: float | None = None, what: str = "input", t0: float = 0.0
+) -> dict:
     """How far, how often and when ``values`` leave ``fitted_range`` = [lo, hi].
 
     Returns a JSON-able dict: the range, samples below and above (every one, however small the exit), the largest exits
     (in the values' units and in % of the fitted span), the ``tolerance`` (`RANGE_TOL` of the span), the exit stretches
     beyond it (first sample, and seconds when ``dt`` is given) and a ``warning`` sentence when any sample is outside by
-    more than the tolerance; ``note`` when the range is unknown.
+    more than the tolerance; ``note`` when the range is unknown.  ``t0``: the time of the first sample (a record's own
+    time axis, so the times match its time column); 0 for a plain array.
     """
     v = np.asarray(values, dtype=np.float64)
     if not (isinstance(fitted_range, (list, tuple)) and len(fitted_range) == 2):
@@ -96,12 +104,12 @@ def range_check(values, fitted_range, column: str = "input", *, dt: float | None
     runs = _stretches(below | above)
     out["n_exits"] = len(runs)
     out["exits"] = [
-        {"start_sample": a, "end_sample": b, **({"start_s": a * dt, "duration_s": (b - a) * dt} if dt else {})}
+        {"start_sample": a, "end_sample": b, **({"start_s": t0 + a * dt, "duration_s": (b - a) * dt} if dt else {})}
         for a, b in runs[:20]
     ]
 
     def where(a, b):
-        return f"{a * dt:.4g} s for {(b - a) * dt:.3g} s" if dt else f"sample {a} for {b - a} samples"
+        return _when(a, b, dt, t0)
 
     parts = []
     for mask, side, size in ((above, "above the max", out["max_above"]), (below, "below the min", out["max_below"])):
@@ -165,10 +173,10 @@ def trained_branches(x, mask=None) -> dict:
     }
 
 
-def branch_check(x, trained: dict | None, *, dt: float | None = None) -> dict:
+def branch_check(x, trained: dict | None, *, dt: float | None = None, t0: float = 0.0) -> dict:
     """Samples of ``x`` inside the trained range that lie on a branch training never visited (`trained_branches`), and
-    the share of the trained span they cross; a ``warning`` (with the first such stretch) when that share reaches
-    `BRANCH_WARN`."""
+    the share of the trained span they cross; a ``warning`` (with the first such stretch, at ``t0 + k dt``) when that
+    share reaches `BRANCH_WARN`."""
     if not trained:
         return {"checked": False, "what": "branches", "note": "the model file carries no trained branches: branches not checked"}
     from ..data.split import branch_directions
@@ -200,7 +208,7 @@ def branch_check(x, trained: dict | None, *, dt: float | None = None) -> dict:
     }
     if off.any() and extent >= BRANCH_WARN:
         a, b = _stretches(off)[0]
-        where = f"{a * dt:.4g} s for {(b - a) * dt:.3g} s" if dt else f"sample {a} for {b - a} samples"
+        where = _when(a, b, dt, t0)
         worst = max(out["by_direction"], key=out["by_direction"].get)
         out["warning"] = (
             f"the model's hysteresis input walks branches its training never visited, across {100 * extent:.0f} % of the "
@@ -211,15 +219,16 @@ def branch_check(x, trained: dict | None, *, dt: float | None = None) -> dict:
     return out
 
 
-def model_range_checks(model, data_info: dict, u, dt, column: str = "input") -> list[dict]:
+def model_range_checks(model, data_info: dict, u, dt, column: str = "input", *, t0: float = 0.0) -> list[dict]:
     """Raw-input and effective-input (hysteresis input) checks of ``u`` against a fit.json's ``data`` ranges, and the
-    branch check of the effective input against ``data.trained_branches`` (when the file has them)."""
-    checks = [range_check(u, data_info.get("input_range"), column, dt=dt, what="input")]
+    branch check of the effective input against ``data.trained_branches`` (when the file has them).  ``t0``: the time
+    of the first sample on the record's own axis (times in the warnings and the JSON), 0 without a record."""
+    checks = [range_check(u, data_info.get("input_range"), column, dt=dt, what="input", t0=t0)]
     eff = data_info.get("effective_input_range")
     if eff is not None:
         x = effective_values(model, u, dt)
         if x is not None:
-            checks.append(range_check(x, eff, "hysteresis input", dt=dt, what="effective input"))
+            checks.append(range_check(x, eff, "hysteresis input", dt=dt, what="effective input", t0=t0))
             if data_info.get("trained_branches"):
-                checks.append(branch_check(x, data_info["trained_branches"], dt=dt))
+                checks.append(branch_check(x, data_info["trained_branches"], dt=dt, t0=t0))
     return checks

@@ -207,7 +207,7 @@ def _median_doc(record, runs, kept, final, doc, extra, progress, refitted=None):
         "validation": metrics(record.y[val], split_y[val]) if val.any() else None,
         "whole_record": metrics(record.y, y_all) if np.all(np.isfinite(y_all)) else None,
     }
-    mets["noise"] = noise_floor([record.y], **mets)
+    mets["noise"] = noise_floor([record], **mets)
     return {
         **fit_header(median),
         "members": [name for name, _, _ in runs],
@@ -664,7 +664,7 @@ def _fit_structure(
                 "on the whole record with the same structure choices (split model in fit.json 'split_model'; --no-refit keeps it)"
             )
         mets["noise"] = noise_floor(
-            [record.y], train=mets["train"], validation=mets["validation"], whole_record=mets.get("whole_record")
+            [record], train=mets["train"], validation=mets["validation"], whole_record=mets.get("whole_record")
         )
         note = noise_floor_note(mets["noise"])
         if note:
