@@ -148,12 +148,19 @@ def test_vectorised_logprob_shapes_single_trace_and_nan_to_minus_inf():
         post(thetas[:, :2])
 
 
-def test_walkers_in_batches_give_the_same_log_density_and_predictions(monkeypatch):
-    """Long records evaluate the walkers in sequential batches (`walker_batch`): the memory of one batch, same values."""
+def test_walker_batch_sizes():
     from smafl_jax.bayes import _bayes  # private: the batching of the jitted log-density and predictions
 
     assert _bayes.walker_batch(32, 30_000) == 32 and _bayes.walker_batch(32, 90_000) == 11
     assert _bayes.walker_batch(32, 360_000) == 2 and _bayes.walker_batch(4, 10**9) == 1
+
+
+@pytest.mark.slow  # suite time (18 s: two compilations of the density and the predictions); the padded batching itself
+# is checked against one vmap by test_in_batches_equals_one_vmap_for_every_remainder in the default suite
+def test_walkers_in_batches_give_the_same_log_density_and_predictions(monkeypatch):
+    """Long records evaluate the walkers in sequential batches (`walker_batch`): the memory of one batch, same values."""
+    from smafl_jax.bayes import _bayes  # private: the batching of the jitted log-density and predictions
+
     truth, u, y = _small_cascade_problem(n=60)
     post = sj.Posterior(truth, (u, y), 0.5, linear="marginalise", gain_scale=3.0, sigma=0.03)
     rng = np.random.default_rng(1)

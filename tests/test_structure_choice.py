@@ -113,6 +113,7 @@ def test_model_auto_on_a_quasi_static_voltage_record_compares_the_static_classes
     assert (thermal_of(model) is not None) == choice["chosen"].startswith("cascade")
 
 
+@pytest.mark.slow  # suite time (15 s, two auto fits); the class choice itself stays in the default suite (above)
 def test_model_auto_refits_only_the_kept_structure(tmp_path, monkeypatch):
     import smafl_jax.report._report_fit as report_fit  # private: counts the whole-record refits
 
