@@ -604,8 +604,9 @@ def _jumps(rec: Record, dt_rtol: float, y: np.ndarray) -> list[Finding]:
     out = []
     for a, b, size, parts in merged:
         at_end = a == 0 or b == n
+        window = f"--window {rec.time[b]:.6g}:" if a == 0 else f"--window :{rec.time[a - 1]:.6g}"
         what = (
-            f"cut the {b - a} samples {'before' if a == 0 else 'after'} the step"
+            f"cut the {b - a} samples {'before' if a == 0 else 'after'} the step ({window})"
             if at_end
             else f"mark samples {a}..{b - 1} (or subtract the offset)"
         )
