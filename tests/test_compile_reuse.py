@@ -5,13 +5,9 @@
   so all thermal starts of one structure share a program; the losses must be those of the steady rule itself.
 """
 
-import contextlib
-import logging
-import re
 import sys
 from pathlib import Path
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -20,29 +16,7 @@ from smafl_jax.identify import screen_start
 
 sys.path.insert(0, str(Path(__file__).parent))
 import indep_plant
-
-
-@contextlib.contextmanager
-def compiled_names():
-    """Names of the XLA programs compiled inside the block (JAX's compile log)."""
-    names = []
-
-    class Grab(logging.Handler):
-        def emit(self, record):
-            m = re.search(r"Finished XLA compilation of (\S+)", record.getMessage())
-            if m:
-                names.append(m.group(1))
-
-    logger = logging.getLogger("jax")
-    handler, level = Grab(level=logging.DEBUG), logger.level
-    logger.addHandler(handler)
-    logger.setLevel(logging.DEBUG)
-    try:
-        with jax.log_compiles(True):
-            yield names
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
+from compile_log import compiled_names
 
 
 def test_preisach_relays_compile_once_outside_jit():

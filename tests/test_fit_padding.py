@@ -6,9 +6,6 @@
 - Another length in the same bucket compiles none of the fit's programs again.
 """
 
-import contextlib
-import logging
-import re
 import sys
 from pathlib import Path
 
@@ -23,32 +20,10 @@ from smafl_jax.models import bucket_length
 
 sys.path.insert(0, str(Path(__file__).parent))
 import indep_plant
+from compile_log import compiled_names
 
 #: The fit's programs that see per-sample arrays (`identify._fit`): the residuals, the solver, the designs.
 FIT_PROGRAMS = ("_residuals", "_solve_optx", "_features", "_batch_design")
-
-
-@contextlib.contextmanager
-def compiled_names():
-    """Names of the XLA programs compiled inside the block (JAX's compile log)."""
-    names = []
-
-    class Grab(logging.Handler):
-        def emit(self, record):
-            m = re.search(r"Finished XLA compilation of (\S+)", record.getMessage())
-            if m:
-                names.append(m.group(1))
-
-    logger = logging.getLogger("jax")
-    handler, level = Grab(level=logging.DEBUG), logger.level
-    logger.addHandler(handler)
-    logger.setLevel(logging.DEBUG)
-    try:
-        with jax.log_compiles(True):
-            yield names
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
 
 
 def _records(lengths, seed=40):
