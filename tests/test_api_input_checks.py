@@ -183,6 +183,7 @@ def _no_gain_lines(caplog):
     return [(r.levelno, r.getMessage()) for r in caplog.records if "did not lower the loss" in r.getMessage()]
 
 
+@pytest.mark.slow  # suite time (15 s; a fresh-clone .ci/run took 612 s with it)
 def test_refinement_that_does_not_lower_the_loss_says_so(rng, eupi, cascade, caplog):
     """A joint refinement that ends no lower than its start says so in ``message`` and ``info``; the log line is a
     WARNING when that is news: the refinement had something to do (here k2, which the output does not depend on), or

@@ -28,6 +28,7 @@ def _short_record(path, n):
 # -- 6: Ctrl-C during sampling ------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # suite time (16 s: a sample run, interrupted, then resumed); interrupts: tests/test_reliability.py
 def test_ctrl_c_while_sampling_says_what_is_saved_and_how_to_resume(tmp_path, capsys, monkeypatch):
     """A real SIGINT in the middle of the sampler (inside the log-density, where the time goes): exit 130, one line with
     the steps saved and the command that resumes, none of emcee's dump of the walkers (it printed one for any exception
