@@ -763,10 +763,10 @@ def _sampling(rec: Record, dt_rtol: float) -> list[Finding]:
         msg = f"first at t = {t[first]:.6g} s; " + msg
         out.append(_finding(rec, "irregular_sampling", "time_s", 0, n, math.nan, math.nan, msg, "resample"))
     else:
-        grid_in_gap = sum(int(np.sum((t > a) & (t < b))) for a, b in gaps)
+        grid_in_gap = int(np.sum(~rec.measured))
         msg = (
             f"resampled record: {len(gaps)} gap{'s' if len(gaps) != 1 else ''} of {lengths.min():.3g}..{lengths.max():.3g} s bridged by linear interpolation"
-            f"{burst}; {grid_in_gap} of {n} samples ({grid_in_gap / n:.1%}) are interpolated, not measured: leave them out of the scores"
+            f"{burst}; {grid_in_gap} of {n} samples ({grid_in_gap / n:.1%}) are interpolated, not measured: fit, diagnose and their scores give them no weight"
         )
         out.append(_finding(rec, "irregular_sampling", "time_s", 0, n, math.nan, math.nan, msg, "mark"))
     for (a_t, b_t), L in zip(gaps, lengths):

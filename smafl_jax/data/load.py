@@ -67,7 +67,7 @@ import numpy as np
 from smafl_jax._errors import DataError, UserInputError
 
 from .names import is_voltage
-from .record import DEFAULT_DT_RTOL, Record, check_time
+from .record import DEFAULT_DT_RTOL, Record, check_time, interpolated_mask
 
 __all__ = [
     "load_record",
@@ -631,15 +631,7 @@ def resample_record(rec: Record, dt: float | str = "auto", *, dt_rtol: float = D
     grid = t[0] + dt * np.arange(math.floor(span / dt * (1 + 1e-12)) + 1)
     gap_idx = np.flatnonzero(d > (1 + dt_rtol) * dt)
     gaps = tuple((float(t[k]), float(t[k + 1])) for k in gap_idx)
-    in_gap = np.zeros(grid.size, bool)
-    if gap_idx.size:
-        # grid points strictly inside a bridged interval are interpolated across missing data
-        lo = np.searchsorted(grid, t[gap_idx], side="right")
-        hi = np.searchsorted(grid, t[gap_idx + 1], side="left")
-        marks = np.zeros(grid.size + 1, int)
-        np.add.at(marks, lo, 1)
-        np.add.at(marks, hi, -1)
-        in_gap = np.cumsum(marks)[:-1] > 0
+    in_gap = interpolated_mask(grid, gaps, dt)  # grid points inside a bridged interval: interpolated across missing data
 
     def interp(x):
         x = np.asarray(x, float)

@@ -23,6 +23,28 @@ __all__ = ["Record", "DEFAULT_DT_RTOL", "check_time"]
 DEFAULT_DT_RTOL = 0.15
 
 
+#: A grid point within this fraction of a sample time of a bridged gap's end stamp is that stamp (a time column written
+#: with fewer digits than the grid's float arithmetic: 0.7 read vs 7 x 0.1 = 0.7000000000000001 on the grid).
+STAMP_RTOL = 1e-6
+
+
+def interpolated_mask(time, gaps, dt: float) -> np.ndarray:
+    """True on the samples of ``time`` strictly inside one of the ``gaps`` ``(t_start, t_end)`` (more than
+    `STAMP_RTOL` x ``dt`` from both ends): the grid points a resampling filled in by linear interpolation."""
+    t = np.asarray(time, dtype=np.float64)  # increasing, as every record's time axis
+    if not len(gaps):
+        return np.zeros(t.shape[0], bool)
+    tol = STAMP_RTOL * float(dt)
+    ends = np.asarray(gaps, dtype=np.float64).reshape(-1, 2)
+    # one pass over the samples however many gaps (a long burst-logged record has tens of thousands)
+    lo = np.searchsorted(t, ends[:, 0] + tol, side="right")
+    hi = np.searchsorted(t, ends[:, 1] - tol, side="left")
+    marks = np.zeros(t.shape[0] + 1, int)
+    np.add.at(marks, lo, 1)
+    np.add.at(marks, np.maximum(hi, lo), -1)
+    return np.cumsum(marks)[:-1] > 0
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Record:
     """One record: ``time`` (s), input ``u``, output ``y`` (or None), sample time ``dt`` and provenance.
@@ -63,6 +85,14 @@ class Record:
         if self.record_name:
             return self.record_name
         return Path(self.path).stem if self.path else "record"
+
+    @property
+    def measured(self) -> np.ndarray:
+        """Boolean mask of the samples that were measured: False on the grid points inside a gap that resampling
+        bridged (``gaps``), which a straight line filled in (`interpolated_mask`).  Fits give them no weight and scores
+        leave them out (a record resampled from logger bursts had 26 % of them); the model still runs through them.
+        All True for a record read as written."""
+        return ~interpolated_mask(self.time, self.gaps, self.dt)
 
     def take(self, index) -> Record:
         """Sub-record at integer indices or a boolean mask (keeps ``dt``; used for splits)."""

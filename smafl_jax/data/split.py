@@ -142,7 +142,8 @@ def _segment(record: Record, idx: np.ndarray, mask: np.ndarray | None = None, la
         u=np.asarray(record.u)[idx],
         y=None if record.y is None else np.asarray(record.y)[idx],
         dt=float(record.dt),
-        mask=np.ones(idx.size, bool) if mask is None else np.asarray(mask, bool),
+        # samples a resampling interpolated across a gap neither train nor score (`Record.measured`)
+        mask=(np.ones(idx.size, bool) if mask is None else np.asarray(mask, bool)) & record.measured[idx],
         load=load,
         extra={k: np.asarray(v)[idx] for k, v in record.extra.items() if k != BRANCH_COLUMN},
         record=record.name,

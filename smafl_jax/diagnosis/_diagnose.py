@@ -251,7 +251,8 @@ def _segment(rec, idx, mask=None, load_col=None):
         u=sub.u,
         y=sub.y,
         dt=rec.dt,
-        mask=np.ones(n, bool) if mask is None else mask,
+        # samples a resampling interpolated across a gap neither train nor score (`Record.measured`)
+        mask=(np.ones(n, bool) if mask is None else np.asarray(mask, bool)) & sub.measured,
         load=None if load_col is None else sub.extra[load_col],
         extra={k: v for k, v in sub.extra.items() if k != "branch"},
     )

@@ -91,17 +91,11 @@ def metrics(y: ArrayLike, yhat: ArrayLike) -> dict[str, float]:
 
 
 def measured_samples(record) -> np.ndarray:
-    """Boolean mask of a record's samples that are not interpolated across a gap its resampling bridged.
-
-    ``record.gaps`` holds ``(t_start, t_end)`` of each bridged interval (`data.load.resample_record`); the grid points
-    strictly inside one were filled in by a straight line (the data checks count them the same way).  All True for a
-    record read as written.
-    """
-    t = np.asarray(record.time, dtype=np.float64)
-    ok = np.ones(t.size, bool)
-    for a, b in getattr(record, "gaps", ()) or ():
-        ok &= ~((t > a) & (t < b))
-    return ok
+    """Boolean mask of a record's samples that are not interpolated across a gap its resampling bridged
+    (`Record.measured`; all True for an object without ``gaps``)."""
+    if hasattr(record, "measured"):
+        return np.asarray(record.measured, bool)
+    return np.ones(np.asarray(record.time).shape[0], bool)
 
 
 def noise_floor(outputs, **scored: dict | None) -> dict:

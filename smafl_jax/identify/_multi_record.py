@@ -41,6 +41,7 @@ from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown,
 from ._baselines import TITLES as BASELINE_TITLES
 from ._gain_prior import GAIN_PRIOR
 from ._metrics import metrics, noise_floor, noise_floor_note
+from ._split import interpolated_note
 
 __all__ = [
     "fit_records",
@@ -174,7 +175,7 @@ def _joint_fit(
     combo = _combined(records)
     structure, thresholds, tilts, start, notes = structure_start(model, combo, thresholds, tilts, grid)
     max_steps = joint_steps(start, max_steps, notes)
-    weights = [np.ones(len(r)) for r in records]
+    weights = [r.measured.astype(float) for r in records]  # samples a resampling interpolated carry no weight
     screening, init, screen_info = None, "auto", {}
     if hysteresis_of(start) is not None:  # as `fit_record`: every model with a hysteresis part is screened
         # each record its own thermal start (`screen_start(record_starts=True)`, `smafl_jax.identify._record_starts`)
@@ -232,12 +233,12 @@ def _heldout(model, info, rec):
     shared = _with_shared_start(model, info)
     y_shared = np.asarray(simulate(shared, rec.u, rec.dt))
     if thermal_of(shared) is None:
-        return y_shared, np.ones(len(rec), bool), {"rule": "the fitted start, scored whole"}
+        return y_shared, rec.measured, {"rule": "the fitted start, scored whole"}
     est, got = estimate_initial_state(shared, rec.u, rec.y, rec.dt)
-    scored = np.arange(len(rec)) >= got["window_samples"]
+    scored = (np.arange(len(rec)) >= got["window_samples"]) & rec.measured
     after = int(scored.sum()) >= 10
     if not after:  # a record shorter than its window (5 thermal time constants): nothing would be left to score
-        scored[:] = True
+        scored = rec.measured
     start = {
         "rule": "estimated from the held-out record's first window (estimate_initial_state), scored after it"
         if after
@@ -245,7 +246,7 @@ def _heldout(model, info, rec):
         "window_samples": got["window_samples"],
         "thermal": got["thermal"],
         "memory": got["memory"],
-        "shared_start_whole": metrics(rec.y, y_shared) if np.all(np.isfinite(y_shared)) else None,
+        "shared_start_whole": metrics(rec.y[rec.measured], y_shared[rec.measured]) if np.all(np.isfinite(y_shared)) else None,
     }
     return np.asarray(simulate(est, rec.u, rec.dt)), scored, start
 
@@ -495,7 +496,7 @@ def _fit_records_structure(
             finite = bool(np.all(np.isfinite(y_i)))
             m_i = metrics(rec.y[scored], y_i[scored]) if finite else None
             yhat_loro[i] = y_i if finite else None
-            bl = baselines_doc(train, None, [rec], [scored], squared=squared, model_heldout=m_i)
+            bl = baselines_doc(train, [r.measured for r in train], [rec], [scored], squared=squared, model_heldout=m_i)
             folds.append(
                 {
                     "record": names[i],
@@ -533,12 +534,19 @@ def _fit_records_structure(
     for r, y in zip(records, yhat):
         if not np.all(np.isfinite(y)):
             raise UserInputError(f"{r.path or r.name}: the joint model gives non-finite output ({res.message})")
-    per_train = [metrics(r.y, y) for r, y in zip(records, yhat)]
-    pooled_train = metrics(np.concatenate([r.y for r in records]), np.concatenate(yhat))
+    per_train = [metrics(r.y[r.measured], y[r.measured]) for r, y in zip(records, yhat)]
+    pooled_train = metrics(
+        np.concatenate([r.y[r.measured] for r in records]), np.concatenate([y[r.measured] for r, y in zip(records, yhat)])
+    )
 
     # baselines of the final fit (all records train) and their LORO scores
     final_bl = baselines_doc(
-        records, None, records, [np.zeros(len(r), bool) for r in records], squared=squared, model_heldout=None
+        records,
+        [r.measured for r in records],
+        records,
+        [np.zeros(len(r), bool) for r in records],
+        squared=squared,
+        model_heldout=None,
     )
     mean_model = _mean_metrics([f["model"] for f in folds]) if folds else None
     for k in BASELINES:
@@ -551,6 +559,8 @@ def _fit_records_structure(
     )
 
     notes = list(info["notes"])
+    if any(not r.measured.all() for r in records):
+        notes.append(interpolated_note(records))
     if thermal_of(res.model) is not None:  # a thermal lag in front of a hysteresis: k2 cancels (a cascade)
         notes.append(K2_NOTE)
         if len(records) > 1 and record_u0:

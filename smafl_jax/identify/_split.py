@@ -30,7 +30,7 @@ import numpy as np
 from .._errors import UserInputError
 from ..data.split import BRANCH_EVERY, branch_partition, time_cut
 
-__all__ = ["split_masks", "SPLITS"]
+__all__ = ["split_masks", "interpolated_note", "SPLITS", "INTERPOLATED_RULE"]
 
 from .._choices import SPLITS
 
@@ -40,7 +40,40 @@ BRANCH_POSITION = 2  # the residue of `branch_partition` used by fit: the 3rd, 6
 def split_masks(
     record: Any, split: str = "auto", *, val_fraction: float = 0.3, branch_column: str = "branch"
 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
-    """``(train_mask, val_mask, info)`` for ``record`` (boolean arrays over its samples)."""
+    """``(train_mask, val_mask, info)`` for ``record`` (boolean arrays over its samples).
+
+    Samples that resampling interpolated across a gap (`Record.measured` False) are in neither mask: they are not
+    measurements, so they neither train the model nor score it (``info["interpolated_left_out"]`` counts them)."""
+    train, val, info = _split_masks(record, split, val_fraction=val_fraction, branch_column=branch_column)
+    ok = np.asarray(getattr(record, "measured", np.ones(len(record), bool)), bool)
+    if not ok.all():
+        train, val = train & ok, val & ok
+        info = {**info, "interpolated_left_out": int(np.sum(~ok)), "interpolated_rule": INTERPOLATED_RULE}
+        parts = (("training", train), ("validation", val)) if info["kind"] != "none" else (("training", train),)
+        for name, m in parts:
+            if int(m.sum()) < 3:
+                raise UserInputError(
+                    f"{record.path or record.name}: the {name} part keeps {int(m.sum())} measured samples once the "
+                    f"{int(np.sum(~ok))} samples interpolated across resampling gaps are left out; need >= 3"
+                )
+    return train, val, info
+
+
+#: How a resampled record's interpolated samples are treated (fit.json ``split.interpolated_rule``).
+INTERPOLATED_RULE = (
+    "samples that --resample interpolated across a gap of the logger (strictly inside a bridged interval) carry no "
+    "weight in the fit and are left out of every score; the model still runs through them"
+)
+
+
+def interpolated_note(records) -> str:
+    """The fit note of records resampled across gaps: how many samples were interpolated and what was done with them."""
+    n = sum(int(np.sum(~r.measured)) for r in records)
+    total = sum(len(r) for r in records)
+    return f"{n} of {total} samples ({n / total:.1%}) were interpolated across resampling gaps: " + INTERPOLATED_RULE
+
+
+def _split_masks(record, split, *, val_fraction, branch_column):
     n = len(record)
     if split not in SPLITS:
         raise UserInputError(f"unknown split {split!r}; choose one of {SPLITS}")

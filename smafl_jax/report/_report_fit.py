@@ -38,7 +38,7 @@ from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
 from ..identify._metrics import metrics, noise_floor, noise_floor_note
-from ..identify._split import split_masks
+from ..identify._split import interpolated_note, split_masks
 from ..models._cascade import Cascade
 from ..models._eupi import EUPI
 from ..models._hysteresis import hysteresis_class, hysteresis_of, thermal_of
@@ -205,7 +205,7 @@ def _median_doc(record, runs, kept, final, doc, extra, progress, refitted=None):
     mets = {
         "train": metrics(record.y[train], split_y[train]),
         "validation": metrics(record.y[val], split_y[val]) if val.any() else None,
-        "whole_record": metrics(record.y, y_all) if np.all(np.isfinite(y_all)) else None,
+        "whole_record": _whole_record(record, y_all),
     }
     mets["noise"] = noise_floor([record], **mets)
     return {
@@ -497,6 +497,8 @@ def _fit_structure(
     structure, thresholds, tilts, start, notes = structure_start(model, record, thresholds, tilts, grid)
     max_steps = joint_steps(start, max_steps, notes)
     train, val, split_info = split_masks(record, split, val_fraction=val_fraction)
+    if split_info.get("interpolated_left_out"):
+        notes.append(interpolated_note([record]))
     # long Joule-driven records are fitted on a block-RMS view (see _decimate); metrics stay at the full rate
     rec, (tr, va), view_info = fit_view(record, start, [train, val])
     if view_info:
@@ -600,7 +602,7 @@ def _fit_structure(
             pick[0], gain_prior, chunked=early_stopping,
         )  # fmt: skip
         if view_info and max_steps > 0:
-            final = _polish(final, record, np.ones(len(record), bool), solver, thresholds, tilts, progress, gain_prior)
+            final = _polish(final, record, record.measured, solver, thresholds, tilts, progress, gain_prior)
         return final
 
     finals = {}
@@ -612,11 +614,14 @@ def _fit_structure(
             # independent warm step-train record: validation preferred "falls", 8x vs 15x noise, whose whole-record
             # fit then stayed at 3.2x noise on its own training data and 22x on new data; "rises": 1.2x and 3.1x).
             finals = {i: deploy(p) for i, p in enumerate(picks)}
-            sse = {i: float(np.sum((np.asarray(simulate(m, record.u, record.dt)) - record.y) ** 2)) for i, m in finals.items()}
+            ok = record.measured
+            sse = {
+                i: float(np.sum((np.asarray(simulate(m, record.u, record.dt)) - record.y)[ok] ** 2)) for i, m in finals.items()
+            }
             sse = {i: v if np.isfinite(v) else np.inf for i, v in sse.items()}
             chosen = min(sse, key=lambda i: sse[i])
             how = "whole-record training RMSE " + ", ".join(
-                f"{sign_of(picks[i][1].model)} {np.sqrt(v / len(record)):.4g}" for i, v in sse.items()
+                f"{sign_of(picks[i][1].model)} {np.sqrt(v / ok.sum()):.4g}" for i, v in sse.items()
             )
         elif va.any():
             chosen = min(range(len(picks)), key=lambda i: val_mse(picks[i][2]))
@@ -658,7 +663,7 @@ def _fit_structure(
             # On independent cold-start records a fit starved of the last 30 % extrapolated 10-50x worse.
             final = finals[chosen] if chosen in finals else deploy((label, res, yhat, refinement))
             y_all = np.asarray(simulate(final, record.u, record.dt))
-            mets["whole_record"] = metrics(record.y, y_all) if np.all(np.isfinite(y_all)) else None
+            mets["whole_record"] = _whole_record(record, y_all)
             notes.append(
                 "validation metrics are those of the model fitted on the training samples only; the saved model is refitted "
                 "on the whole record with the same structure choices (split model in fit.json 'split_model'; --no-refit keeps it)"
@@ -854,6 +859,12 @@ def _polish(model, record, mask, solver, thresholds, tilts, progress, gain_prior
     return res.model
 
 
+def _whole_record(record, y_all):
+    """Metrics of the saved model over the record's measured samples (None on non-finite output)."""
+    ok = record.measured
+    return metrics(record.y[ok], y_all[ok]) if np.all(np.isfinite(y_all)) else None
+
+
 def _refit_whole(
     record,
     structure,
@@ -873,7 +884,7 @@ def _refit_whole(
     """The split fit's structure choices, refitted on every sample of the record (``chunked``: a kept refinement's warm
     refit in `LM_CHUNK`-step chunks, as an early-stopped split refinement ran)."""
     say("refitting the chosen structure on the whole record", progress)
-    ones = [np.ones(len(record))]
+    ones = [record.measured.astype(float)]  # every measured sample (none a resampling interpolated)
     if refinement == "kept" and max_steps > 0:
         # warm start from the split's refined model: the whole-record optimum is close, LM needs few steps
         spec = default_trainable(chosen, thresholds=thresholds, tilts=tilts)
@@ -885,7 +896,6 @@ def _refit_whole(
         )  # fmt: skip
         return res.model
     e = chosen.hysteresis
-    ones = [np.ones(len(record))]
     start, _, _ = screen_start(
         build_model(structure, record, **(grid or {})),
         record,
