@@ -310,6 +310,23 @@ def _simulate_all(model, records):
     return [np.asarray(simulate(record_model(model, i), r.u, r.dt)) for i, r in enumerate(records)]
 
 
+def _trained_hysteresis(model, records) -> dict:
+    """fit.json ``data`` entries of a joint model's hysteresis input over all its records (each from its own start):
+    the effective input range of a model with a thermal stage and the trained branches (`trained_branches_of`), so
+    that `smafl simulate` / `control` check a new drive against them as for a one-record fit."""
+    from ..models._range import EFFECTIVE_RULE, effective_values, hysteresis_values, trained_branches_of
+
+    out: dict = {}
+    xs = [effective_values(record_model(model, i), r.u, r.dt) for i, r in enumerate(records)]
+    if all(x is not None and np.all(np.isfinite(x)) for x in xs):
+        out["effective_input_range"] = value_range(np.concatenate(xs))
+        out["effective_input_range_rule"] = EFFECTIVE_RULE + "; over every record, each from its own fitted start"
+    xs = [hysteresis_values(record_model(model, i), r.u, r.dt) for i, r in enumerate(records)]
+    if all(x is not None and np.all(np.isfinite(x)) for x in xs):
+        out["trained_branches"] = trained_branches_of([(x, None) for x in xs])
+    return out
+
+
 def _mean_metrics(rows: list[dict | None]) -> dict | None:
     ok = [r for r in rows if r]
     if not ok:
@@ -698,6 +715,7 @@ def _fit_records_structure(
         "notes": notes,
         "versions": versions(),
     }
+    doc["data"].update(_trained_hysteresis(record_model, records))
     # record_model: the joint fit as fitted, each training record from its own start (`record_model(model, i)`)
     details = {"names": names, "yhat": yhat, "yhat_loro": yhat_loro, "record_model": record_model}
     return res.model, doc, details

@@ -50,7 +50,7 @@ from ._preisach import (
     tikhonov_matrix,
 )
 from ._preisach_gauss import GaussianPreisach
-from ._range import branch_check, range_check, trained_branches
+from ._range import branch_check, hysteresis_values, range_check, trained_branches, trained_branches_of
 from ._simulate import simulate, simulate_batch
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
@@ -118,4 +118,6 @@ __all__ = [
     "range_check",
     "branch_check",
     "trained_branches",
+    "trained_branches_of",
+    "hysteresis_values",
 ]

@@ -36,6 +36,18 @@ def effective_values(model, u, dt) -> np.ndarray | None:
     return np.asarray(model.hysteresis_input(jnp.asarray(u, dtype=jnp.float64), jnp.asarray(dt, dtype=jnp.float64)))
 
 
+def hysteresis_values(model, u, dt) -> np.ndarray | None:
+    """What the model's hysteresis walks along ``u``: the effective input (`effective_values`) of a model with a
+    thermal stage, the input itself for a model whose hysteresis sees it directly (a temperature or pressure record),
+    None for a model without a hysteresis."""
+    x = effective_values(model, u, dt)
+    if x is not None:
+        return x
+    from ._hysteresis import hysteresis_of
+
+    return np.asarray(u, dtype=np.float64) if hysteresis_of(model) is not None else None
+
+
 def value_range(values, mask=None) -> list[float]:
     """[min, max] of ``values`` (over ``mask`` when given) as JSON-able floats."""
     v = np.asarray(values, dtype=np.float64)
@@ -149,26 +161,40 @@ def trained_branches(x, mask=None) -> dict:
     Stored in fit.json (``data.trained_branches``) so that `smafl simulate` can say when a new drive walks the model's
     hysteresis input along a branch training never saw (`branch_check`), which a range check cannot: on an independent
     plant a wire heated in steps and never cooled in training was predicted 8 mm (3.3x the record's range) off once the
-    new drive let it cool through temperatures the training had visited only while heating.
+    new drive let it cool through temperatures the training had visited only while heating.  Several records (a joint
+    fit, the segments of a split): `trained_branches_of`.
     """
+    return trained_branches_of([(x, mask)])
+
+
+def trained_branches_of(segments) -> dict:
+    """`trained_branches` over several trajectories ``[(x, mask or None), ...]``: one range over all their training
+    samples, each trajectory's branch directions on its own (joining two records would invent a move between them),
+    the cells visited in either."""
     from ..data.split import COVERAGE_TOL, branch_directions
 
-    x = np.asarray(x, float)
-    m = np.ones(x.size, bool) if mask is None else np.asarray(mask, bool)
-    lo, hi = value_range(x, m)
+    segs = [(np.asarray(x, float), np.ones(np.shape(x)[0], bool) if m is None else np.asarray(m, bool)) for x, m in segments]
+    if not segs or not any(m.any() for _, m in segs):
+        raise ValueError("trained_branches: no training samples")
+    lo, hi = value_range(np.concatenate([x[m] for x, m in segs]))
     span = (hi - lo) or 1.0
-    d = branch_directions(x, COVERAGE_TOL * span)
-    c = _branch_cells(x, lo, span)
+    rising, falling = set(), set()
+    for x, m in segs:
+        d = branch_directions(x, COVERAGE_TOL * span)
+        c = _branch_cells(x, lo, span)
+        # samples before the first move (d == 0) belong to either branch
+        rising.update(c[m & (d >= 0)].tolist())
+        falling.update(c[m & (d <= 0)].tolist())
     return {
         "range": [lo, hi],
         "cells": BRANCH_CELLS,
         "deadband": COVERAGE_TOL * span,
-        # samples before the first move (d == 0) belong to either branch
-        "rising": sorted(set(c[m & (d >= 0)].tolist())),
-        "falling": sorted(set(c[m & (d <= 0)].tolist())),
+        "rising": sorted(rising),
+        "falling": sorted(falling),
         "rule": (
             f"cells of {BRANCH_CELLS} over the trained range of the model's hysteresis input visited by the training samples, "
             "per branch direction (the last move larger than the deadband)"
+            + (f"; {len(segs)} records, each with its own directions" if len(segs) > 1 else "")
         ),
     }
 
@@ -231,4 +257,9 @@ def model_range_checks(model, data_info: dict, u, dt, column: str = "input", *, 
             checks.append(range_check(x, eff, "hysteresis input", dt=dt, what="effective input", t0=t0))
             if data_info.get("trained_branches"):
                 checks.append(branch_check(x, data_info["trained_branches"], dt=dt, t0=t0))
+    elif data_info.get("trained_branches") and effective_values(model, u, dt) is None:
+        # a hysteresis that sees the input directly: its branches are the input's own
+        x = hysteresis_values(model, u, dt)
+        if x is not None:
+            checks.append(branch_check(x, data_info["trained_branches"], dt=dt, t0=t0))
     return checks

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model
-from ..models._range import EFFECTIVE_RULE, effective_values, trained_branches, value_range
+from ..models._range import EFFECTIVE_RULE, effective_values, hysteresis_values, trained_branches_of, value_range
 from ._provenance import record_data, versions
 from ._reportdoc import axis_label, unit_of
 
@@ -35,8 +35,10 @@ def _trained_range(rec, split, model, deployed):
     if all(x is not None and np.all(np.isfinite(x)) for x in xs):
         out["effective_input_range"] = value_range(np.concatenate([x[m] for x, (_, m) in zip(xs, segs)]))
         out["effective_input_range_rule"] = EFFECTIVE_RULE
-        if len(xs) == 1:  # one trajectory: its branches (several segments would join unrelated histories)
-            out["trained_branches"] = trained_branches(xs[0], segs[0][1])
+    xs = [hysteresis_values(model, u, rec.dt) for u, _ in segs]  # a direct-input hysteresis: the input itself
+    if all(x is not None and np.all(np.isfinite(x)) for x in xs) and any(m.any() for _, m in segs):
+        # each segment is its own trajectory (joining them would invent a move between unrelated histories)
+        out["trained_branches"] = trained_branches_of([(x, m) for x, (_, m) in zip(xs, segs)])
     return out
 
 

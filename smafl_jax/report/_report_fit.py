@@ -43,7 +43,7 @@ from ..models._cascade import Cascade
 from ..models._eupi import EUPI
 from ..models._hysteresis import hysteresis_class, hysteresis_of, thermal_of
 from ..models._joule_lag import JouleLag
-from ..models._range import EFFECTIVE_RULE, effective_values, trained_branches, value_range
+from ..models._range import EFFECTIVE_RULE, effective_values, hysteresis_values, trained_branches, value_range
 from ..models._simulate import simulate
 from ..models._thermal import JouleThermal
 from ._provenance import fit_header, record_data, solver_entry, versions
@@ -741,7 +741,9 @@ def _fit_structure(
             # what the saved model's hysteresis saw in training: simulate/control/sweep warn when a new input leaves it
             doc["data"]["effective_input_range"] = value_range(x_eff, fitted_on)
             doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
-            doc["data"]["trained_branches"] = trained_branches(x_eff, fitted_on)
+        x_h = hysteresis_values(final, record.u, record.dt)  # a direct-input hysteresis walks the input's own branches
+        if x_h is not None and np.all(np.isfinite(x_h)):
+            doc["data"]["trained_branches"] = trained_branches(x_h, fitted_on)
         return final, doc, (train, val, yhat)
 
     if defer_refit:

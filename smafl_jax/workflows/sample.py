@@ -159,11 +159,11 @@ def _hysteresis_input(post, rec, i):
 
 
 def _sampled_branches(post, recs, n_train) -> dict:
-    """The hysteresis input's range and branches (`models._range.trained_branches`: a cascade's thermal state, else
-    the input) over the sampled samples of every record."""
-    from ..models._range import trained_branches
+    """The hysteresis input's range and branches (`models._range.trained_branches_of`: a cascade's thermal state, else
+    the input) over the sampled samples of every record, each record its own trajectory."""
+    from ..models._range import trained_branches_of
 
-    return trained_branches(np.concatenate([_hysteresis_input(post, r, i)[:n] for i, (r, n) in enumerate(zip(recs, n_train))]))
+    return trained_branches_of([(_hysteresis_input(post, r, i)[:n], None) for i, (r, n) in enumerate(zip(recs, n_train))])
 
 
 #: A held-out sample is unconstrained when the 95 % band of the model output there is wider than this many noise SDs

@@ -500,8 +500,8 @@ def simulate_record(
                 **scores,  # with a calibration its n_samples counts the scored samples after the segment
                 **({"n_record_samples": len(rec), "calibration": calibration} if calibration is not None else {}),
                 "input_range_check": checks[0],
-                "effective_input_range_check": checks[1] if len(checks) > 1 else None,
-                "branch_check": checks[2] if len(checks) > 2 else None,
+                "effective_input_range_check": next((c for c in checks[1:] if c.get("what") == "effective input"), None),
+                "branch_check": next((c for c in checks if c.get("what") == "branches"), None),
                 "processing": list(rec.processing),
             },
         )
