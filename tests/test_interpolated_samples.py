@@ -1,14 +1,20 @@
 """Samples that resampling interpolated across a logger's gaps are not measurements: no fit weight, no score.
 
-`Record.measured` marks them; `split_masks`, the joint fit of several records, the leave-one-record-out scores and the
-diagnosis segments leave them out, while the model still runs through them.  Checked by changing only the
+`Record.measured` marks them; `split_masks`, the joint fit of several records, the leave-one-record-out scores, the
+diagnosis segments and the posterior's likelihood (`Posterior(mask=)`) leave them out, while the model still runs
+through them.  Checked by changing only the
 interpolated outputs of a record: nothing a fit reports may move.
 """
 
 import dataclasses
+import json
+from pathlib import Path
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 import pytest
+from scipy import stats
 
 import smafl_jax as sj
 from smafl_jax.data.split import time_block
@@ -94,3 +100,70 @@ def test_joint_fit_and_leave_one_record_out_ignore_interpolated_outputs(tmp_path
         for k in fa["baselines"]:
             assert fb["baselines"][k]["rmse"] == pytest.approx(fa["baselines"][k]["rmse"], rel=1e-9)
     assert any("interpolated across resampling gaps" in n for n in doc_a["notes"])
+
+
+def _cascade_problem(n=80, seed=0):
+    from tests.reference import random_reversals
+
+    rng = np.random.default_rng(seed)
+    model = sj.Cascade.from_range(7.4, n_sym=2, n_alpha=1, n_asym=2, poly_order=2)
+    u = random_reversals(rng, n)
+    hyst = model.hysteresis.with_linear_weights(np.array([0.3, 1.0, 0.5, 0.2, 0.1, 0.05, 0.2]))
+    truth = sj.Cascade(thermal=sj.JouleThermal(k1=jnp.asarray(0.2), k2=jnp.asarray(0.05)), hysteresis=hyst)
+    y = np.asarray(truth.simulate(u, 0.5)) + 0.02 * rng.standard_normal(n)
+    return truth, u, y
+
+
+@pytest.mark.parametrize("linear", ["sample", "marginalise", "profile"])
+def test_posterior_mask_leaves_samples_out_of_the_likelihood(linear):
+    truth, u, y = _cascade_problem()
+    keep = np.ones(u.size, bool)
+    keep[10:25] = keep[50:53] = False
+    kw = dict(linear=linear, gain_scale=3.0 if linear == "marginalise" else 1e6, sigma=0.03)
+    post = sj.Posterior(truth, (u, y), 0.5, mask=[keep], **kw)
+    bad = sj.Posterior(truth, (u, np.where(keep, y, y + 4.0)), 0.5, mask=[keep], **kw)
+    model, sigma = post.unpack(post.theta0)
+    loglik = float(eqx.filter_jit(post._loglik)(model, sigma))
+    assert float(eqx.filter_jit(bad._loglik)(model, sigma)) == pytest.approx(loglik, rel=1e-12)
+    # against dense references on the kept rows only (the model still runs through every sample)
+    A = np.asarray(model.hysteresis.features(model.thermal.effective_voltage(model.thermal.simulate(u, 0.5))))[keep]
+    if linear == "sample":
+        expected = stats.norm.logpdf(np.asarray(model.simulate(u, 0.5))[keep] - y[keep], scale=float(sigma)).sum()
+    elif linear == "marginalise":
+        cov = float(sigma) ** 2 * np.eye(int(keep.sum())) + 3.0**2 * A @ A.T
+        expected = stats.multivariate_normal(mean=np.zeros(int(keep.sum())), cov=cov).logpdf(y[keep])
+    else:
+        w = np.linalg.lstsq(A, y[keep], rcond=None)[0]
+        expected = stats.norm.logpdf(A @ w - y[keep], scale=float(sigma)).sum()
+    assert loglik == pytest.approx(expected, rel=1e-6)
+    whole = sj.Posterior(truth, (u, y), 0.5, **kw)
+    assert float(eqx.filter_jit(whole._loglik)(model, sigma)) != pytest.approx(loglik, rel=1e-3)
+
+
+def test_posterior_mask_bad_input():
+    truth, u, y = _cascade_problem(n=30)
+    with pytest.raises(ValueError, match="boolean array of shape"):
+        sj.Posterior(truth, (u, y), 0.5, mask=[np.ones(29, bool)])
+    with pytest.raises(ValueError, match="need at least 3"):
+        sj.Posterior(truth, (u, y), 0.5, mask=[np.arange(30) < 2])
+
+
+def test_smafl_sample_resamples_windows_and_leaves_interpolated_samples_out(tmp_path):
+    from smafl_jax.cli import main as cli_main
+
+    truth = sj.load_model(Path(__file__).resolve().parents[1] / "datasets" / "truth.json")
+    k = np.concatenate([b * 12 + np.arange(8) for b in range(30)])  # bursts of 8 on a 0.5 s grid, 4 lost between
+    t = 0.5 * k
+    u = 3.5 + 3.0 * np.sin(2 * np.pi * t / 40.0)
+    y = np.asarray(truth.simulate(np.interp(0.5 * np.arange(k[-1] + 1), t, u), 0.5))[k]
+    y = y + 0.01 * np.random.default_rng(4).standard_normal(y.size)
+    csv = tmp_path / "bursts.csv"
+    sj.atomic_write_csv(csv, {"time_s": t, "voltage_V": u, "displacement_mm": y})
+    out = tmp_path / "post"
+    args = ["sample", str(csv), "--fit", str(Path(__file__).resolve().parents[1] / "datasets" / "truth.json")]
+    args += ["--resample", "0.5", "--window", "6:", "--steps", "12", "--draws", "10", "--no-progress", "--out", str(out)]
+    assert cli_main(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    data = summary["data"]
+    assert data["n_train_interpolated_left_out"] > 0
+    assert any("resampled" in p for p in data["processing"]) and any("kept the window" in p for p in data["processing"])

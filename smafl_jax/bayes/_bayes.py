@@ -319,6 +319,29 @@ def _ridge_lstsq(A, y, ridge):
     return _chol.cho_solve(_chol.cholesky(M), A.T @ y)
 
 
+def _likelihood_mask(mask, data) -> np.ndarray | None:
+    """``mask`` (one boolean array per record, or None) as one 1/0 float array over the concatenated records; None
+    when every sample counts.  Why: samples a resampling interpolated across a logger's gaps are not measurements
+    (`Record.measured`); the likelihood leaves them out while the model still runs through them."""
+    if mask is None:
+        return None
+    if isinstance(mask, np.ndarray) and mask.ndim == 1 and len(data) == 1:
+        mask = [mask]
+    mask = list(mask)
+    if len(mask) != len(data):
+        raise UserInputError(f"got {len(mask)} masks for {len(data)} records")
+    out = []
+    for i, (m, (u, _, _)) in enumerate(zip(mask, data)):
+        m = np.ones(u.shape[0], bool) if m is None else np.asarray(m)
+        if m.shape != u.shape or m.dtype != bool:
+            raise UserInputError(f"mask {i}: expected a boolean array of shape {u.shape}, got {m.dtype} {m.shape}")
+        out.append(m)
+    flat = np.concatenate(out)
+    if flat.sum() < 3:
+        raise UserInputError(f"the masks keep {int(flat.sum())} samples in the likelihood; need at least 3")
+    return None if flat.all() else flat.astype(np.float64)
+
+
 def check_model_supported(model, where="model"):
     """`UserInputError` for models the posterior cannot handle: anything without a ``simulate(u, dt)``.
 
@@ -358,7 +381,9 @@ class Posterior:
     ``prior_only=True`` drops the likelihood (prior checks, tests of the Jacobian).  ``new_record_start``: for a model
     that holds one start per record of ``data`` (a joint fit's `for_record`), the thermal start rule ``(init, u0)`` a
     record outside ``data`` starts by in `predict`, with an optional operator-memory rule ``(init, u0, memory)`` (the
-    joint fit's shared rule, as ``smafl simulate`` uses it).
+    joint fit's shared rule, as ``smafl simulate`` uses it).  ``mask``: one boolean array per record (or None): the
+    samples the likelihood counts (e.g. `Record.measured`, which leaves out what a resampling interpolated); every
+    record is still simulated whole.
     """
 
     def __init__(
@@ -376,6 +401,7 @@ class Posterior:
         gain_scale=None,
         prior_only=False,
         new_record_start=None,
+        mask=None,
     ):
         if noise not in NOISE_MODELS:
             raise UserInputError(f"noise model must be one of {NOISE_MODELS}, got {noise!r}")
@@ -387,6 +413,7 @@ class Posterior:
             raise UserInputError(f"gain_scale (prior sd of the gains) must be > 0, got {gain_scale}")
         check_model_supported(model)
         self.data = as_fit_data(data, dt, model=model)
+        self.mask = _likelihood_mask(mask, self.data)
         self.noise, self.nu, self.linear, self.prior_only = noise, float(nu), linear, bool(prior_only)
         spec = default_trainable(model) if trainable is None else trainable
         if linear != "sample":
@@ -410,6 +437,7 @@ class Posterior:
             res = np.concatenate(
                 [np.asarray(simulate(record_model(model, i), u, d)) - y for i, (u, y, d) in enumerate(self.data)]
             )
+            res = res if self.mask is None else res[self.mask > 0]
             sigma = float(np.sqrt(np.mean(res**2))) if np.all(np.isfinite(res)) else 0.1 * yr
             sigma = max(sigma, 1e-6 * yr)
         raw = unconstrain(model)
@@ -446,6 +474,7 @@ class Posterior:
             linear=linear,
             prior_only=bool(prior_only),
             new_start=None if new_record_start is None else _start_rule(*new_record_start),
+            mask=None if self.mask is None else jnp.asarray(self.mask),
         )
         if linear != "sample" and not jax.tree_util.tree_leaves(raw_train):
             self._d = dataclasses.replace(self._d, design=_fixed_design(self._d, model))
@@ -523,6 +552,7 @@ class _Density(eqx.Module):
     prior_only: bool = eqx.field(static=True)
     new_start: tuple | None = eqx.field(static=True, default=None)  # (init, u0, memory) of a record outside args
     design: tuple | None = None  # `_fixed_design`: when only the noise scale is sampled
+    mask: jnp.ndarray | None = None  # 1/0 per sample of the concatenated records (None: every sample in the likelihood)
 
     def unravel(self, theta):
         parts, i = [], 0
@@ -540,19 +570,26 @@ class _Density(eqx.Module):
         raw_train, raw_noise = self.unravel(theta)
         return ravel_pytree((constrain(raw_train), constrain(raw_noise)))[0]
 
+    def _n(self, n_rows):
+        """Samples in the likelihood: the mask's ones, else every row."""
+        return n_rows if self.mask is None else jnp.sum(self.mask)
+
     def _loglik_resid(self, r, sigma):
-        n = r.shape[0]
+        n = self._n(r.shape[0])
+        w = 1.0 if self.mask is None else self.mask  # masked samples contribute nothing
         if self.noise == "gaussian":
-            return -0.5 * jnp.sum((r / sigma) ** 2) - n * jnp.log(sigma) - 0.5 * n * _LOG2PI
+            return -0.5 * jnp.sum(w * (r / sigma) ** 2) - n * jnp.log(sigma) - 0.5 * n * _LOG2PI
         nu = self.nu
         c = jax.scipy.special.gammaln(0.5 * (nu + 1)) - jax.scipy.special.gammaln(0.5 * nu) - 0.5 * math.log(nu * math.pi)
-        return n * c - n * jnp.log(sigma) - 0.5 * (nu + 1) * jnp.sum(jnp.log1p((r / sigma) ** 2 / nu))
+        return n * c - n * jnp.log(sigma) - 0.5 * (nu + 1) * jnp.sum(w * jnp.log1p((r / sigma) ** 2 / nu))
 
     def _design(self, model):
         A = jnp.concatenate([record_model(model, i).features(u, d) for i, (u, _, d) in enumerate(self.args)])
         y = jnp.concatenate([y for _, y, _ in self.args])
+        if self.mask is not None:  # masked rows zeroed: as if deleted from the normal equations (n counted apart)
+            A, y = A * self.mask[:, None], y * self.mask
         # column scaling (exact: prior sd scaled alike) keeps the normal equations well conditioned
-        c = jnp.maximum(jnp.sqrt(jnp.mean(A * A, axis=0)), 1e-12)
+        c = jnp.maximum(jnp.sqrt(jnp.sum(A * A, axis=0) / self._n(A.shape[0])), 1e-12)
         return A / c[None, :], y, c
 
     def _fixed_weights(self, sigma, key=None):
@@ -571,7 +608,7 @@ class _Density(eqx.Module):
         A, y, _, _, lam, g = self.design
         if self.linear == "profile":
             return self._loglik_resid(A @ self._fixed_weights(sigma) - y, sigma)
-        n = y.shape[0]
+        n = self._n(y.shape[0])
         shrink = 1.0 / (lam / sigma**2 + 1.0)
         quad = jnp.sum(y * y) / sigma**2 - jnp.sum(shrink * g * g) / sigma**4
         logdet_cov = n * jnp.log(sigma**2) + jnp.sum(jnp.log1p(lam / sigma**2))
@@ -606,7 +643,7 @@ class _Density(eqx.Module):
         if self.linear == "profile":
             return self._loglik_resid(A @ _ridge_lstsq(A, y, sigma / tau) - y, sigma)
         # marginal likelihood of y ~ N(0, sigma^2 I + A diag(tau^2) A^T) via the p x p system
-        n = y.shape[0]
+        n = self._n(y.shape[0])
         L = _chol.cholesky(M)  # not LAPACK: batched under vmap it deadlocked XLA's CPU pool (bayes/_cholesky.py)
         z = _chol.solve_lower(L, b)
         logdet_M = 2.0 * jnp.sum(jnp.log(jnp.diag(L)))

@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 
 from ._lines import workflow_lines_on_stderr
-from .check import TIME_HELP
+from .check import TIME_HELP, add_window_argument
 
 
 def add_parser(sub):
@@ -58,6 +58,14 @@ def add_parser(sub):
     p.add_argument("--input", default=None, help="input column (default: the fit's)")
     p.add_argument("--output", default=None, help="output column (default: the fit's)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
+    p.add_argument(
+        "--resample",
+        default=None,
+        metavar="DT|auto",
+        help="put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); "
+        "interpolated samples are simulated through but left out of the likelihood. Without it irregular sampling is an error",
+    )
+    add_window_argument(p)
     p.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive bands (default 200)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--restart", action="store_true", help="discard an existing chain in DIR instead of resuming it")
@@ -103,6 +111,7 @@ def _interrupt_note(out, steps, saved):
 
 
 def run(args):
+    from ..data._data import parse_resample, parse_window
     from ..workflows import sample as W
     from . import set_interrupt_note
 
@@ -126,6 +135,8 @@ def run(args):
             input=args.input,
             output=args.output,
             time=args.time,
+            resample=parse_resample(args.resample),
+            window=parse_window(args.window),
             draws=args.draws,
             seed=args.seed,
             restart=args.restart,

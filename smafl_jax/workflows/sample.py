@@ -92,8 +92,10 @@ def _load_fit(fit):
     return fit, {}, hashlib.sha256(blob).hexdigest(), None
 
 
-def _load_records(record, *, input=None, output=None, time=None) -> list:
-    """The records to condition on: a CSV path, folder or glob, a `Record`, or a sequence of them (one column choice)."""
+def _load_records(record, *, input=None, output=None, time=None, resample=None, window=None) -> list:
+    """The records to condition on: a CSV path, folder or glob, a `Record`, or a sequence of them (one column choice).
+    ``resample`` (seconds or "auto") puts the files' irregular stamps on a uniform grid; ``window`` ``(start, end)``
+    seconds cuts every record (`Record.window`)."""
     from ..data._data import Record
     from ..data.load import load_records
 
@@ -105,9 +107,11 @@ def _load_records(record, *, input=None, output=None, time=None) -> list:
         raise UserInputError(f"expected CSV paths or Records, got a {bad[0]}")
     paths = [x for x in items if not isinstance(x, Record)]
     # the files first (one column choice, folders and globs expanded, units checked alike), then the Records given
-    recs = (load_records(paths, input=input, output=output, time=time) if paths else []) + [
+    recs = (load_records(paths, input=input, output=output, time=time, resample=resample) if paths else []) + [
         x for x in items if isinstance(x, Record)
     ]
+    if window is not None:
+        recs = [r.window(*window) for r in recs]
     first = recs[0]
     for r in recs[1:]:
         if (r.input_name, r.output_name) != (first.input_name, first.output_name):
@@ -299,6 +303,8 @@ def sample_posterior(
     input: str | None = None,
     output: str | None = None,
     time: str | None = None,
+    resample: float | str | None = None,
+    window: tuple[float | None, float | None] | None = None,
     draws: int = 200,
     seed: int = 0,
     restart: bool = False,
@@ -314,7 +320,10 @@ def sample_posterior(
     a joint fit, matched by content: its fitted start, fit.json ``per_record_start``; another: the fit's start rule);
     the predictive figures get one panel per record, ``predictive.csv`` a ``record`` column.  ``fit``: a fit.json or
     model file path (its data columns and sample time are the defaults), or a model object.  ``time``: the CSVs'
-    time column (default ``time_s``, else one named like a time; `smafl_jax.data.load_record`).
+    time column (default ``time_s``, else one named like a time; `smafl_jax.data.load_record`).  ``resample``: the CSVs'
+    irregular stamps on a uniform grid of that many seconds ("auto": the median step; the samples interpolated across
+    gaps are simulated through and left out of the likelihood and the coverage); ``window``: ``(start, end)`` seconds
+    of each record to condition on (None ends open).
     ``linear``: ``"auto"`` (marginalise the hysteresis weights when the output is linear in them and
     the noise is Gaussian, profile them for Student-t noise, else sample them), ``"sample"``,
     ``"marginalise"`` or ``"profile"``.  ``priors``: a JSON file or ``{name: Prior}``.  Rerunning
@@ -355,7 +364,14 @@ def sample_posterior(
     model, doc, fit_sha, fit_label = _load_fit(fit)
     B.check_model_supported(model, where=fit_label or "fit")
     info = doc.get("data", {}) if isinstance(doc.get("data"), dict) else {}
-    recs = _load_records(record, input=input or info.get("input_column"), output=output or info.get("output_column"), time=time)
+    recs = _load_records(
+        record,
+        input=input or info.get("input_column"),
+        output=output or info.get("output_column"),
+        time=time,
+        resample=resample,
+        window=window,
+    )
     rec = recs[0]
     several = len(recs) > 1
     for r in recs:
@@ -366,7 +382,7 @@ def sample_posterior(
         if fit_dt and not np.isclose(fit_dt, r.dt, rtol=0.02):
             LOGGER.warning(f"note: the model was fitted at dt={fit_dt:g} s and {r.path or r.name} has dt={r.dt:g} s")
     if heldout is not None:
-        held = _load_records(heldout, input=rec.input_name, output=rec.output_name, time=time)
+        held = _load_records(heldout, input=rec.input_name, output=rec.output_name, time=time, resample=resample)
         n_train = [len(r) for r in recs]
     else:
         held = []
@@ -386,6 +402,8 @@ def sample_posterior(
     post = B.Posterior(
         model,
         [(r.u[:n], r.y[:n], r.dt) for r, n in zip(recs, n_train)],
+        # samples a resampling interpolated across gaps are simulated through but not in the likelihood
+        mask=[r.measured[:n] for r, n in zip(recs, n_train)] if not all(r.measured.all() for r in recs) else None,
         noise=noise,
         nu=nu,
         priors=priors,
@@ -446,6 +464,9 @@ def sample_posterior(
             "sample_time_s": r.dt,
             "heldout": None if heldout is not None else (f"last {len(r) - n} samples" if n < len(r) else None),
             "start": _start_words(row, th),
+            "processing": list(r.processing),
+            # interpolated across resampling gaps: simulated through, not in the likelihood
+            "n_train_interpolated_left_out": int(np.sum(~r.measured[:n])),
         }
         for r, n, row in zip(recs, n_train, own_starts)
     ]
@@ -466,6 +487,8 @@ def sample_posterior(
             "n_train": n_train[0],
             "sample_time_s": rec.dt,
             "heldout": ", ".join(_record_file(r) for r in held) if held else rows[0]["heldout"],
+            "processing": rows[0]["processing"],
+            "n_train_interpolated_left_out": rows[0]["n_train_interpolated_left_out"],
         }
         if rows[0]["start"] and own_starts[0] is not None:
             summary["data"]["start"] = rows[0]["start"]
@@ -515,9 +538,10 @@ def sample_posterior(
         loose = _unconstrained(post, target, i, mask, fq, sigma, sampled, y_span)
         if loose:
             summary["warnings"].append(loose)
-        held_part = ~mask
-        covers[_record_file(target)] = cover
-        inside[0] += int(np.sum((target.y >= yq[0]) & (target.y <= yq[1]) & held_part))
+        held_part = ~mask & target.measured  # interpolated samples are no measurements to cover
+        n_in = int(np.sum((target.y >= yq[0]) & (target.y <= yq[1]) & held_part))
+        covers[_record_file(target)] = n_in / int(held_part.sum()) if held_part.any() else cover
+        inside[0] += n_in
         inside[1] += int(held_part.sum())
         # the CSV is numeric: the record column is the index into summary.json data.predictive_records
         part = {"record": np.full(len(target), float(k))} if len(targets) > 1 else {}
