@@ -33,6 +33,19 @@ def add_window_argument(p):
     p.add_argument("--window", default=None, metavar="START:END", help=WINDOW_HELP)
 
 
+#: ``--resample``'s help, one text for every command that loads records.
+RESAMPLE_HELP = (
+    "put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); every bridged "
+    "gap is reported, and the samples interpolated across a gap get no weight in fits and leave every score. Without it "
+    "irregular sampling is an error"
+)
+
+
+def add_resample_argument(p):
+    """``--resample DT|auto`` (parse with `smafl_jax.data._data.parse_resample`)."""
+    p.add_argument("--resample", default=None, metavar="DT|auto", help=RESAMPLE_HELP)
+
+
 def apply_window(records, text):
     """``records`` cut to the ``--window`` (unchanged without one); the cut is in each record's ``processing``."""
     from smafl_jax.data._data import parse_window
@@ -47,12 +60,7 @@ def add_parser(sub):
     p.add_argument("--input", default=None, help="input column (default: the sidecar's, else a common name)")
     p.add_argument("--output", default=None, help="output column (default: the sidecar's, else a common name)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
-    p.add_argument(
-        "--resample",
-        default=None,
-        metavar="DT",
-        help="put irregular time stamps on a uniform DT-second grid (linear interpolation; 'auto' = median step) before checking",
-    )
+    add_resample_argument(p)
     add_window_argument(p)
     p.add_argument("--json", default=None, metavar="OUT.json", help="also write the records and findings to this JSON file")
     p.set_defaults(func=run)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .check import TIME_HELP, add_window_argument, apply_window
+from .check import TIME_HELP, add_resample_argument, add_window_argument, apply_window
 
 
 def add_parser(sub):
@@ -19,6 +19,7 @@ def add_parser(sub):
     p.add_argument("--input", default=None, help="input column (default: sidecar, then a common name)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, then a common name)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
+    add_resample_argument(p)
     add_window_argument(p)
     p.add_argument(
         "--out",
@@ -98,9 +99,11 @@ def run(args):
     if args.n_folds < 2:
         raise UserInputError(f"--n-folds must be >= 2, got {args.n_folds}")
     from ..data import load_records
+    from ..data._data import parse_resample
     from ..diagnosis._diagnose import check_record, diagnose
 
-    records = apply_window(load_records(args.data, input=args.input, output=args.output, time=args.time), args.window)
+    loaded = load_records(args.data, input=args.input, output=args.output, time=args.time, resample=parse_resample(args.resample))
+    records = apply_window(loaded, args.window)
     for rec in records:
         check_record(rec)  # before the output folder is created
     out = prepare_out_dir(args.out)

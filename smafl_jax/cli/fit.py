@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from .._choices import GAIN_PRIOR
-from .check import TIME_HELP, add_window_argument, apply_window
+from .check import TIME_HELP, add_resample_argument, add_window_argument, apply_window
 
 
 def add_parser(sub):
@@ -25,13 +25,7 @@ def add_parser(sub):
         "or a glob fit ONE joint model (each record from its own initial state) with leave-one-record-out validation "
         "(--split none skips it)",
     )
-    p.add_argument(
-        "--resample",
-        default=None,
-        metavar="DT|auto",
-        help="put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); "
-        "every bridged gap is reported. Without it irregular sampling is an error",
-    )
+    add_resample_argument(p)
     p.add_argument("--input", default=None, help="input column (default: sidecar, else a common name such as voltage_V)")
     p.add_argument("--output", default=None, help="output column (default: sidecar, else e.g. displacement_mm)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 
 from ._lines import workflow_lines_on_stderr
-from .check import TIME_HELP, add_window_argument
+from .check import TIME_HELP, add_resample_argument, add_window_argument
 
 
 def add_parser(sub):
@@ -58,13 +58,7 @@ def add_parser(sub):
     p.add_argument("--input", default=None, help="input column (default: the fit's)")
     p.add_argument("--output", default=None, help="output column (default: the fit's)")
     p.add_argument("--time", default=None, metavar="COL", help=TIME_HELP)
-    p.add_argument(
-        "--resample",
-        default=None,
-        metavar="DT|auto",
-        help="put irregular time stamps on a uniform DT-second grid by linear interpolation ('auto' = median step); "
-        "interpolated samples are simulated through but left out of the likelihood. Without it irregular sampling is an error",
-    )
+    add_resample_argument(p)
     add_window_argument(p)
     p.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive bands (default 200)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
