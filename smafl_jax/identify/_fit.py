@@ -712,7 +712,8 @@ def _fit(
     init_loss = 0.5 * float(res0 @ res0)
     if solver is None or max_steps == 0:
         info["total_seconds"] = time.perf_counter() - t0
-        return FitResult(model, init_loss, 0, True, f"initialiser only ({init})", "none", init_loss, info)
+        how = init if init is not None else "the start as given: no initialiser, no refinement"
+        return FitResult(model, init_loss, 0, True, f"initialiser only ({how})", "none", init_loss, info)
     start = _lift_zero_gains(model, spec, profiled=init == "profile")
     say(f"joint refinement: {solver}, up to {max_steps} steps", progress)
     t1 = time.perf_counter()
