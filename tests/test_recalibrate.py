@@ -129,6 +129,10 @@ def test_segment_times_count_from_the_record_start_time(truth):
     assert segment_indices((None, 3.0), 200, DT, t0=0.0) == (0, 6)
     with pytest.raises(sj.UserInputError, match=r"starts outside the record, which runs from 100 s to 199\.5 s"):
         segment_indices((0.0, 10.0), 200, DT, t0=100.0)
+    # a logger's first row at t = dt: `--calibrate 0:30` means from the record's start (up to one sample before it)
+    assert segment_indices((0.0, 10.0), 200, DT, t0=DT) == (0, 19)  # 0.5 .. 9.5 s
+    with pytest.raises(sj.UserInputError, match="starts outside the record"):
+        segment_indices((0.0, 10.0), 200, DT, t0=2.5 * DT)
 
 
 def test_save_and_load_round_trip(truth, tmp_path):

@@ -148,6 +148,10 @@ def segment_indices(segment, n: int, dt: float, t0: float = 0.0) -> tuple[int, i
     if start >= end:
         raise UserInputError(f"calibration segment {start:g}:{end:g} s: the start must come before the end")
     eps = 1e-9 * max(dt, abs(t0), abs(t_last))
+    if t0 - dt - eps <= start < t0:
+        # a start up to one sample time before the first stamp (a logger writing its first row at t = dt; the README's
+        # `--calibrate 0:30`) means the record's start, as an end up to one sample after the last means its end
+        start = t0
     if start < t0 - eps or start > t_last + eps:
         raise UserInputError(
             f"calibration segment {start:g}:{end:g} s starts outside the record, which runs from {_fmt_time(t0)} to {_fmt_time(t_last)}"
