@@ -11,19 +11,15 @@ import smafl_jax as sj
 from smafl_jax.identify import write_records_outputs
 from smafl_jax.models import branch_check, trained_branches, trained_branches_of
 from smafl_jax.report import fit_record, write_fit_outputs
+from tests.reference import play_loop as reference_play
 
 FAST = dict(model="eupi", max_steps=0, grid=dict(n_sym=6, n_alpha=0, n_asym=0, poly_order=2))
 DT = 0.1
 
 
 def play_loop(u, r):
-    """Plain-loop symmetric play operator (PAPER.md eq. 1 with alpha = 1), started as if the input came down from above."""
-    out = np.empty_like(u)
-    f = u[0] + r
-    for k, x in enumerate(u):
-        f = max(x - r, min(x + r, f))
-        out[k] = f
-    return out
+    """Symmetric play operator (PAPER.md eq. 1, alpha = 1) started as if the input came down from above."""
+    return reference_play(u, r, 1.0, u[0] + r)[:, 0]
 
 
 def _sawtooth(n=600, period=100, lo=20.0, hi=70.0, rising=True):

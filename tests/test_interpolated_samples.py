@@ -11,7 +11,6 @@ import json
 from pathlib import Path
 
 import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy import stats
@@ -19,19 +18,16 @@ from scipy import stats
 import smafl_jax as sj
 from smafl_jax.data.split import time_block
 from smafl_jax.report import fit_record
+from tests.reference import play_loop as reference_play
+from tests.test_bayes import _small_cascade_problem
 
 # initialiser only (bounded least squares for the gains): what enters the loss is under test, not the refinement
 FAST = dict(model="eupi", max_steps=0, grid=dict(n_sym=6, n_alpha=0, n_asym=0, poly_order=2))
 
 
 def play_loop(u, r):
-    """Plain-loop symmetric play operator (PAPER.md eq. 1 with alpha = 1), started as if the input came down from above."""
-    out = np.empty_like(u)
-    f = u[0] + r
-    for k, x in enumerate(u):
-        f = max(x - r, min(x + r, f))
-        out[k] = f
-    return out
+    """Symmetric play operator (PAPER.md eq. 1, alpha = 1) started as if the input came down from above."""
+    return reference_play(u, r, 1.0, u[0] + r)[:, 0]
 
 
 def _bursty_csv(path, seed, n_bursts=40, burst=8, missing=4, dt=0.1):
@@ -102,21 +98,9 @@ def test_joint_fit_and_leave_one_record_out_ignore_interpolated_outputs(tmp_path
     assert any("interpolated across resampling gaps" in n for n in doc_a["notes"])
 
 
-def _cascade_problem(n=80, seed=0):
-    from tests.reference import random_reversals
-
-    rng = np.random.default_rng(seed)
-    model = sj.Cascade.from_range(7.4, n_sym=2, n_alpha=1, n_asym=2, poly_order=2)
-    u = random_reversals(rng, n)
-    hyst = model.hysteresis.with_linear_weights(np.array([0.3, 1.0, 0.5, 0.2, 0.1, 0.05, 0.2]))
-    truth = sj.Cascade(thermal=sj.JouleThermal(k1=jnp.asarray(0.2), k2=jnp.asarray(0.05)), hysteresis=hyst)
-    y = np.asarray(truth.simulate(u, 0.5)) + 0.02 * rng.standard_normal(n)
-    return truth, u, y
-
-
 @pytest.mark.parametrize("linear", ["sample", "marginalise", "profile"])
 def test_posterior_mask_leaves_samples_out_of_the_likelihood(linear):
-    truth, u, y = _cascade_problem()
+    truth, u, y = _small_cascade_problem()
     keep = np.ones(u.size, bool)
     keep[10:25] = keep[50:53] = False
     kw = dict(linear=linear, gain_scale=3.0 if linear == "marginalise" else 1e6, sigma=0.03)
@@ -141,7 +125,7 @@ def test_posterior_mask_leaves_samples_out_of_the_likelihood(linear):
 
 
 def test_posterior_mask_bad_input():
-    truth, u, y = _cascade_problem(n=30)
+    truth, u, y = _small_cascade_problem(n=30)
     with pytest.raises(ValueError, match="boolean array of shape"):
         sj.Posterior(truth, (u, y), 0.5, mask=[np.ones(29, bool)])
     with pytest.raises(ValueError, match="need at least 3"):
