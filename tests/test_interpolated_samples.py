@@ -132,6 +132,8 @@ def test_posterior_mask_bad_input():
         sj.Posterior(truth, (u, y), 0.5, mask=[np.arange(30) < 2])
 
 
+# suite time (34 s on a busy machine): the likelihood mask is checked against dense references above
+@pytest.mark.slow
 def test_smafl_sample_resamples_windows_and_leaves_interpolated_samples_out(tmp_path):
     from smafl_jax.cli import main as cli_main
 
