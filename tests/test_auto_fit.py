@@ -269,7 +269,7 @@ def test_joint_thermal_start_refinement_recovers_k1_and_u0(rng):
     np.testing.assert_allclose(float(model.thermal.u0), 3.1, rtol=0.05)
 
 
-def test_initial_state_rules_on_a_new_record(rng, tmp_path):
+def test_initial_state_rules_on_a_new_record(rng, tmp_path, capsys):
     """A model fitted on a cold-start record, run on a record that starts warm: "estimate" finds the start."""
     dt, n = 0.5, 1200
     u = np.clip(np.repeat(rng.uniform(0.5, 6.0, n // 60), 60), 0.0, 6.0)
@@ -292,25 +292,25 @@ def test_initial_state_rules_on_a_new_record(rng, tmp_path):
         sj.with_initial_state(fitted, "estimate", u, None, dt)
     with pytest.raises(sj.UserInputError, match="rule"):
         sj.with_initial_state(fitted, "warmish")
-    # the command line: the rule is stated, and estimate without a measured column exits 2 with one line
-    import subprocess
+    # the command line (in this process: a subprocess costs a fresh import and compile, suite time): the rule is
+    # stated, and estimate without a measured column exits 2 with one line
+    from smafl_jax.cli import main
 
     model_path = tmp_path / "model.json"
     sj.save_model(model_path, fitted)
     csv = tmp_path / "new.csv"
     sj.atomic_write_csv(csv, {"time_s": np.arange(n) * dt, "voltage_V": u, "displacement_mm": y})
-    run = [sys.executable, "-m", "smafl_jax", "simulate", str(model_path), str(csv), "--measured", "displacement_mm"]
-    ok = subprocess.run([*run, "--out", str(tmp_path / "a.csv"), "--initial-state", "estimate"], capture_output=True, text=True)
-    assert ok.returncode == 0, ok.stderr
-    assert "initial state estimate: thermal state at t=0 as if held at" in ok.stderr
-    assert "(95 % of the record's maximum input" in ok.stderr
+    run = ["simulate", str(model_path), str(csv), "--measured", "displacement_mm"]
+    capsys.readouterr()
+    assert main([*run, "--out", str(tmp_path / "a.csv"), "--initial-state", "estimate"]) == 0
+    err = capsys.readouterr().err
+    assert "initial state estimate: thermal state at t=0 as if held at" in err
+    assert "(95 % of the record's maximum input" in err
     csv2 = tmp_path / "nomeas.csv"
     sj.atomic_write_csv(csv2, {"time_s": np.arange(n) * dt, "voltage_V": u})
-    bad = subprocess.run(
-        [sys.executable, "-m", "smafl_jax", "simulate", str(model_path), str(csv2), "--out", str(tmp_path / "b.csv"),
-         "--initial-state", "estimate"], capture_output=True, text=True,
-    )  # fmt: skip
-    assert bad.returncode == 2 and "measured" in bad.stderr and "Traceback" not in bad.stderr
+    code = main(["simulate", str(model_path), str(csv2), "--out", str(tmp_path / "b.csv"), "--initial-state", "estimate"])
+    err = capsys.readouterr().err
+    assert code == 2 and "measured" in err and "Traceback" not in err
     assert not (tmp_path / "b.csv").exists()
 
 

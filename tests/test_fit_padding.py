@@ -87,6 +87,12 @@ def test_padded_fit_is_the_unpadded_fit():
     r0, r1 = (sj.fit(model, rec, weights=weights, max_steps=10, pad=p) for p in (False, True))
     assert "train_noise_ratio" in r0.info
     _same_fit(r0, r1)
+
+
+@pytest.mark.slow  # suite time (10 s): the refinement's padded program is checked in the default suite above
+def test_padded_refinement_that_moves_is_the_unpadded_one():
+    (rec,), model = _records((601,))
+    weights = [(np.arange(601) < 420).astype(float)]
     # a refinement that moves (from the template's own k1 and gains; the same program)
     m0, m1 = (sj.fit(model, rec, weights=weights, init=None, max_steps=10, pad=p) for p in (False, True))
     assert m0.n_steps > 5 and m0.info["refinement_lowered_loss"]

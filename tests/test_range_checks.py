@@ -149,3 +149,30 @@ def test_simulate_warns_on_an_untrained_branch(tmp_path, capsys):
     sj.atomic_write_csv(csv2, {"time_s": np.arange(heat.size) * dt, "voltage_V": heat})
     assert main(["simulate", str(path), str(csv2), "--out", str(tmp_path / "out2.csv")]) == 0
     assert "never visited" not in capsys.readouterr().err
+
+
+def test_trained_effective_range_holds_the_fitted_start_state():
+    """A cold (or at-rest) start is a state the fit saw; the first sample is already a step warmer.  Without the start in
+    the trained range, a new record resting at that state read as "outside the trained range" (trial 5)."""
+    import dataclasses
+
+    from smafl_jax.effects import ExtendedModel
+    from smafl_jax.models._range import effective_range
+
+    truth = sj.load_model(DATASETS / "truth.json")
+    cold = dataclasses.replace(truth, thermal=dataclasses.replace(truth.thermal, init="ambient"))
+    dt = 0.05
+    u = np.full(400, 3.0)  # power on from the first sample, from cold
+    x = np.asarray(cold.hysteresis_input(u, dt))
+    assert x[0] > 0.01 * (x.max() - x.min())  # the first sample is already well above the cold start
+    rng = effective_range([(cold, u, dt, None)])
+    assert rng == pytest.approx([0.0, x.max()], abs=1e-12)
+    # a new record resting cold before the same step is inside it (it warned against the samples-only range)
+    x_new = np.asarray(cold.hysteresis_input(np.concatenate([np.zeros(40), u]), dt))
+    assert "warning" not in range_check(x_new, rng, what="effective input")
+    assert "warning" in range_check(x_new, [float(x.min()), float(x.max())], what="effective input")
+    # a segment whose first sample was not fitted adds no start; the extended model agrees with its base
+    mask = np.arange(u.size) >= 10
+    assert effective_range([(cold, u, dt, mask)]) == pytest.approx([x[mask].min(), x.max()], rel=1e-12)
+    assert effective_range([(ExtendedModel(cold, ()), u, dt, None)]) == pytest.approx(rng, abs=1e-12)
+    assert float(ExtendedModel(truth, ()).hysteresis_start(u, dt)) == pytest.approx(float(truth.hysteresis_start(u, dt)))

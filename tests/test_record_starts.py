@@ -175,6 +175,7 @@ def test_simulating_a_training_record_of_a_joint_fit_uses_its_own_start(tmp_path
     np.testing.assert_allclose(other.y, shared.simulate(rec_b.u, rec_b.dt), rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.slow  # suite time (19 s, the sample CLI on three records); the posterior's start rule runs in the default suite below
 def test_sample_on_several_records_runs_each_from_its_own_start(tmp_path, rng, capsys):
     """`smafl sample A.csv B.csv C.csv --fit fit.json`: one posterior over all records; training records of the joint fit
     (same file content) start from their own fitted starts, another record by the fit's shared rule; the predictive

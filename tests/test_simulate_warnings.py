@@ -150,3 +150,39 @@ def test_a_measured_column_in_other_units_is_warned(setup, tmp_path):
     # a fit.json without data.output_range: the range comes back from the metrics (eq. 3: e_r = max|error| / range)
     doc = {"metrics": {"whole_record": {"e_r_percent": 2.0, "max_abs_error": 0.08}}}
     assert fitted_output_span(doc) == pytest.approx(4.0) and fitted_output_span({}) is None
+
+
+def test_a_measured_column_read_the_other_way_is_warned_and_can_be_flipped(setup, tmp_path, capsys):
+    """A sensor read as ``c - y`` (trial 5: 1.6e4x the noise, no hint): simulate names it and ``--measured-sign -1``
+    scores against the flipped column (the CSV keeps it as read); calibrating on it warns too."""
+    u, y = setup["u"], setup["y"]
+    csv = tmp_path / "reversed.csv"
+    sj.atomic_write_csv(csv, {"time_s": np.arange(u.size) * DT, "voltage_V": u, "displacement_mm": 85.0 - y})
+    res = sj.simulate_record(setup["path"], csv)
+    w = next(w for w in res.warnings if "runs against the model's output" in w)
+    assert "'displacement_mm'" in w and "-1" in w
+    check = res.scores["output_sign_check"]
+    assert check["correlation"] < -0.99 and check["rmse_flipped_offset_removed"] < 0.1 * check["rmse_offset_removed"]
+    # the column as read, and its own record: no warning
+    assert not any("runs against" in w for w in sj.simulate_record(setup["path"], setup["csv"]).warnings)
+    # flipped as asked: scored against -(85 - y) = y - 85, so only the offset is left; the CSV keeps the column as read
+    out = tmp_path / "sim.csv"
+    assert main(["simulate", str(setup["path"]), str(csv), "--out", str(out), "--measured-sign", "-1", "--metrics",
+                 str(tmp_path / "m.json")]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "runs against" not in err and "sign flipped" in err
+    m = json.loads((tmp_path / "m.json").read_text())
+    assert m["output_sign_check"]["correlation"] > 0.99
+    assert m["rmse"] == pytest.approx(85.0, rel=0.01)
+    import csv as csvmod
+
+    with out.open() as f:
+        rows = list(csvmod.DictReader(f))
+    assert float(rows[0]["displacement_mm"]) == pytest.approx(85.0 - y[0], rel=1e-9)
+    # with a calibration on the reversed column: warned as well (the calibration cannot flip it)
+    res = sj.simulate_record(setup["path"], csv, calibrate="0:10")
+    assert any("runs against the model's output" in w for w in res.warnings)
+    res = sj.simulate_record(setup["path"], csv, calibrate="0:10", measured_sign=-1)
+    assert not any("runs against" in w for w in res.warnings)
+    with pytest.raises(sj.UserInputError, match="measured_sign must be 1 or -1"):
+        sj.simulate_record(setup["path"], csv, measured_sign=2)

@@ -78,6 +78,7 @@ OPTION_NAMES = {
     "calibrate": "--calibrate",
     "calibrate_fit": "--calibrate-fit",
     "measured": "--measured",
+    "measured_sign": "--measured-sign",
     "metrics_file": "--metrics",
     "output_name": "--output-name",
     "method": "--method",

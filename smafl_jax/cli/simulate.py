@@ -76,6 +76,14 @@ def add_parser(sub):
         metavar="NAMES",
         help="comma-separated parameters --calibrate fits: input_gain, input_offset, output_offset (default: all three)",
     )
+    p.add_argument(
+        "--measured-sign",
+        type=int,
+        choices=(1, -1),
+        default=1,
+        help="-1: the measured column reads the other way (a reversed sensor): score and calibrate against its "
+        "negative (the output CSV keeps it as read); simulate warns when the column runs against the model",
+    )
     p.set_defaults(func=run)
     return p
 
@@ -98,6 +106,7 @@ def run(args):
             method=args.method,
             calibrate=args.calibrate,
             calibrate_fit=args.calibrate_fit,
+            measured_sign=args.measured_sign,
             option_names=OPTION_NAMES,
         )
     cal, scored, measured = res.calibration, res.scores, res.measured

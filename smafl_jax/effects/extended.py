@@ -152,6 +152,11 @@ class ExtendedModel(eqx.Module):
         h = self.hysteresis
         return (h.u_span + h.u_ref) ** 2
 
+    def _q0(self, x):
+        th = self.base.thermal
+        # q = theta k1/k2, so every init rule of JouleThermal maps over (steady: x0^2, given: u0^2, ambient: 0)
+        return th.initial_state(x[0]) * (th.k1 / th.k2)
+
     def _thermal(self, x, dt):
         """Thermal state in V^2 units ``q`` for drive ``x`` (see module docstring and `AbstractThermalEffect`)."""
         th = self.base.thermal
@@ -162,8 +167,7 @@ class ExtendedModel(eqx.Module):
         t = jnp.arange(n, dtype=jnp.float64) * dt
         ambient = [a for a in (e.ambient(t, qref) for e in effs) if a is not None]
         q_amb = functools.reduce(jnp.add, ambient) if ambient else jnp.zeros(n)
-        # q = theta k1/k2, so every init rule of JouleThermal maps over (steady: x0^2, given: u0^2, ambient: 0)
-        q0 = th.initial_state(x[0]) * (th.k1 / th.k2)
+        q0 = self._q0(x)
         x = th.drive_samples(x)  # the sampling convention of the base's thermal stage
 
         def step(q, xs):
@@ -199,6 +203,17 @@ class ExtendedModel(eqx.Module):
             for e in effs:
                 x = e.without_thermal(x, t, self.hysteresis)
         return x
+
+    def hysteresis_start(self, u, dt=None):
+        """What the hysteresis sees before the first sample (the thermal start state after the input-stage effects);
+        None without a thermal stage."""
+        if thermal_of(self.base) is None:
+            return None
+        x = jnp.asarray(u, dtype=jnp.float64)
+        dt = jnp.asarray(1.0 if dt is None else dt, dtype=jnp.float64)
+        for e in self.stage_effects("input"):
+            x = e.transform_input(x, dt)
+        return self.base.drive_of_heat(self._q0(x))
 
     def states(self, u, dt):
         """Internal signals: ``x`` (hysteresis input), ``q`` (thermal state, V^2, cascade only), ``y``."""

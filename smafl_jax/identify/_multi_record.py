@@ -314,12 +314,12 @@ def _trained_hysteresis(model, records) -> dict:
     """fit.json ``data`` entries of a joint model's hysteresis input over all its records (each from its own start):
     the effective input range of a model with a thermal stage and the trained branches (`trained_branches_of`), so
     that `smafl simulate` / `control` check a new drive against them as for a one-record fit."""
-    from ..models._range import EFFECTIVE_RULE, effective_values, hysteresis_values, trained_branches_of
+    from ..models._range import EFFECTIVE_RULE, effective_range, hysteresis_values, trained_branches_of
 
     out: dict = {}
-    xs = [effective_values(record_model(model, i), r.u, r.dt) for i, r in enumerate(records)]
-    if all(x is not None and np.all(np.isfinite(x)) for x in xs):
-        out["effective_input_range"] = value_range(np.concatenate(xs))
+    eff = effective_range([(record_model(model, i), r.u, r.dt, None) for i, r in enumerate(records)])
+    if eff is not None:
+        out["effective_input_range"] = eff
         out["effective_input_range_rule"] = EFFECTIVE_RULE + "; over every record, each from its own fitted start"
     xs = [hysteresis_values(record_model(model, i), r.u, r.dt) for i, r in enumerate(records)]
     if all(x is not None and np.all(np.isfinite(x)) for x in xs):

@@ -77,6 +77,12 @@ class Cascade(eqx.Module):
     def hysteresis_input(self, u, dt):
         return self.drive_of(self.thermal.simulate(u, dt))
 
+    def hysteresis_start(self, u, dt=None):
+        """What the hysteresis sees before the first sample of ``u``: the thermal start rule's state (a cold or rest
+        start the fit saw, which a trained range must hold)."""
+        del dt
+        return self.drive_of(self.thermal.initial_state(jnp.asarray(u, dtype=jnp.float64)[0]))
+
     def steady_drive(self, u):
         """Hysteresis input once a constant voltage ``u`` has been held (``u``, or ``u^2`` for ``sees="heat"``)."""
         return u if self.sees == "voltage" else u * u

@@ -22,8 +22,8 @@ import numpy as np
 RANGE_TOL = 0.01
 
 EFFECTIVE_RULE = (
-    "min and max of the model's hysteresis input (the thermal state a cascade's hysteresis sees) over the training samples, "
-    "computed with the saved model"
+    "min and max of the model's hysteresis input (the thermal state a cascade's hysteresis sees) over the training samples "
+    "and the fitted start state before a trained first sample, computed with the saved model"
 )
 
 
@@ -34,6 +34,31 @@ def effective_values(model, u, dt) -> np.ndarray | None:
     import jax.numpy as jnp
 
     return np.asarray(model.hysteresis_input(jnp.asarray(u, dtype=jnp.float64), jnp.asarray(dt, dtype=jnp.float64)))
+
+
+def effective_range(segments) -> list[float] | None:
+    """Trained range of the hysteresis input of a model with a thermal stage over ``[(model, u, dt, mask or None)]``
+    (a record each, each run by its own model: a joint fit's per-record starts): the training samples, and the start
+    state the model put before a segment whose first sample it was fitted on.  Why the start: a cold or at-rest start is
+    a state the fit saw (its operators begin there), but the first sample is already one step warmer; leaving it out warned
+    "outside the trained range" (1.3 % of the span) on in-range cold-start records and on every closed-loop run from rest
+    in a new-user trial.  None for a model without a thermal stage or with a non-finite state."""
+    vals = []
+    for model, u, dt, mask in segments:
+        x = effective_values(model, u, dt)
+        if x is None or not np.all(np.isfinite(x)):
+            return None
+        m = np.ones(x.shape[0], bool) if mask is None else np.asarray(mask, bool)
+        vals.append(x[m])
+        start = getattr(model, "hysteresis_start", None)
+        if m.size and m[0] and start is not None:
+            import jax.numpy as jnp
+
+            x0 = start(jnp.asarray(u, dtype=jnp.float64), dt)
+            if x0 is not None and np.isfinite(float(x0)):
+                vals.append(np.array([float(x0)]))
+    vals = [v for v in vals if v.size]
+    return value_range(np.concatenate(vals)) if vals else None
 
 
 def hysteresis_values(model, u, dt) -> np.ndarray | None:

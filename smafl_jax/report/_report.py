@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, save_model
-from ..models._range import EFFECTIVE_RULE, effective_values, hysteresis_values, trained_branches_of, value_range
+from ..models._range import EFFECTIVE_RULE, effective_range, hysteresis_values, trained_branches_of, value_range
 from ._provenance import record_data, versions
 from ._reportdoc import axis_label, unit_of
 
@@ -31,9 +31,9 @@ def _trained_range(rec, split, model, deployed):
         segs = [(np.asarray(s.u, float), np.asarray(s.mask, bool)) for s in split.train]
         rule = "min and max of the input over the training samples of the split"
     out = {"input_range": value_range(np.concatenate([u[m] for u, m in segs])), "input_range_rule": rule}
-    xs = [effective_values(model, u, rec.dt) for u, _ in segs]
-    if all(x is not None and np.all(np.isfinite(x)) for x in xs):
-        out["effective_input_range"] = value_range(np.concatenate([x[m] for x, (_, m) in zip(xs, segs)]))
+    eff = effective_range([(model, u, rec.dt, m) for u, m in segs])
+    if eff is not None:
+        out["effective_input_range"] = eff
         out["effective_input_range_rule"] = EFFECTIVE_RULE
     xs = [hysteresis_values(model, u, rec.dt) for u, _ in segs]  # a direct-input hysteresis: the input itself
     if all(x is not None and np.all(np.isfinite(x)) for x in xs) and any(m.any() for _, m in segs):

@@ -43,7 +43,7 @@ from ..models._cascade import Cascade
 from ..models._eupi import EUPI
 from ..models._hysteresis import hysteresis_class, hysteresis_of, thermal_of
 from ..models._joule_lag import JouleLag
-from ..models._range import EFFECTIVE_RULE, effective_values, hysteresis_values, trained_branches, value_range
+from ..models._range import EFFECTIVE_RULE, effective_range, effective_values, hysteresis_values, trained_branches
 from ..models._simulate import simulate
 from ..models._thermal import JouleThermal
 from ._provenance import fit_header, record_data, solver_entry, versions
@@ -736,10 +736,10 @@ def _fit_structure(
         # the saved model's own training samples: every sample after the whole-record refit, else the split's training part
         fitted_on = np.ones(len(record), bool) if final is not split_model else train
         add_record_extras(doc, record, train, val, yhat, fitted_on=fitted_on)
-        x_eff = effective_values(final, record.u, record.dt)
-        if x_eff is not None and np.all(np.isfinite(x_eff)):
+        eff = effective_range([(final, record.u, record.dt, fitted_on)])
+        if eff is not None:
             # what the saved model's hysteresis saw in training: simulate/control/sweep warn when a new input leaves it
-            doc["data"]["effective_input_range"] = value_range(x_eff, fitted_on)
+            doc["data"]["effective_input_range"] = eff
             doc["data"]["effective_input_range_rule"] = EFFECTIVE_RULE
         x_h = hysteresis_values(final, record.u, record.dt)  # a direct-input hysteresis walks the input's own branches
         if x_h is not None and np.all(np.isfinite(x_h)):

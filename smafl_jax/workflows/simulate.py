@@ -216,6 +216,39 @@ def output_scale_check(measured: np.ndarray, simulated: np.ndarray, fitted_span:
     return out
 
 
+#: `output_sign_check` warns when the measured column anti-correlates with the model's output at least this strongly ...
+SIGN_CORR_WARN = -0.5
+#: ... and the sign-flipped model (with its best offset) fits it at most this fraction of the RMSE as read.
+SIGN_RMSE_RATIO = 0.5
+
+
+def output_sign_check(measured: np.ndarray, simulated: np.ndarray, column: str, option: str, sign: int = 1) -> dict:
+    """Whether the measured column reads the other way from the model's output: their correlation, and the RMSE (each
+    with its best constant offset) of the model as read and sign-flipped, with a ``warning`` naming a reversed sensor
+    when the flipped model fits far better.  Why: a new-user trial scored a sensor read as ``85 - y`` at 1.6e4x the
+    noise with no hint, and a calibration on it ended at its bounds."""
+    m, s = np.asarray(measured, np.float64), np.asarray(simulated, np.float64)
+    out: dict = {"rule": f"correlation <= {SIGN_CORR_WARN} and flipped RMSE <= {SIGN_RMSE_RATIO} x as read (offsets removed)"}
+    if m.size < 3 or np.ptp(m) == 0 or np.ptp(s) == 0:
+        return {**out, "checked": False}
+    r = float(np.corrcoef(m, s)[0, 1])
+    as_read, flipped = float(np.std(m - s)), float(np.std(m + s))
+    out.update(checked=True, correlation=r, rmse_offset_removed=as_read, rmse_flipped_offset_removed=flipped)
+    if r <= SIGN_CORR_WARN and flipped <= SIGN_RMSE_RATIO * as_read:
+        how = (
+            f"drop {option} -1: the column may read the right way as it is"
+            if sign == -1
+            else f"rerun with {option} -1 (or refit on records read this way)"
+        )
+        read = "flipped as asked" if sign == -1 else "as read"
+        out["warning"] = (
+            f"the measured column '{column}' ({read}) runs against the model's output (correlation {r:.3f}): flipped and "
+            f"offset, the model would score RMSE {flipped:.4g} against {as_read:.4g} {read}; a sensor mounted or wired "
+            f"the other way (a length sensor read as extension, or c - y) would do this: {how}"
+        )
+    return out
+
+
 def _out_name(output_name: str | None, data_info: Mapping) -> str:
     """The simulated column's name: ``output_name``, else ``<the fit's output column>_model``."""
     return output_name or f"{data_info.get('output_column') or 'output'}_model"
@@ -263,6 +296,7 @@ def simulate_record(
     method: str | None = None,
     calibrate: str | Sequence[float | None] | None = None,
     calibrate_fit: str | Sequence[str] | None = None,
+    measured_sign: int = 1,
     option_names: Mapping[str, str] | None = None,
 ) -> SimulationResult:
     """Run ``model`` on ``record``; write the output CSV to ``out`` and the scores to ``metrics_file`` (each if given).
@@ -276,7 +310,9 @@ def simulate_record(
     ``segmented``; default the model's own).  ``calibrate``: ``"START:END"`` or ``(start, end)`` seconds of
     the record on which to re-anchor the model (``calibrate_fit``: which of input_gain, input_offset,
     output_offset, comma-separated or a sequence; default all); the scores then cover only the samples
-    after the segment.  ``metrics_file`` needs a measured column.  An existing ``out`` file is replaced
+    after the segment.  ``measured_sign``: -1 reads the measured column with its sign flipped (a sensor that reads
+    the other way; the scores, the start estimate and the calibration use the flipped column, the CSV keeps it as
+    read).  ``metrics_file`` needs a measured column.  An existing ``out`` file is replaced
     (logged as a note).  ``option_names``: how error messages name the settings.
     """
     from .._io import atomic_write_csv, atomic_write_json, check_writable_file, load_model_file
@@ -349,6 +385,21 @@ def simulate_record(
         )
     cols_in = _columns(rec)
     measured_col = measured or data_info.get("output_column")
+    cols_as_read = dict(cols_in)
+    if measured_sign not in (1, -1):
+        raise UserInputError(f"{o('measured_sign')} must be 1 or -1, got {measured_sign!r}")
+    if measured_sign == -1:
+        if measured_col not in cols_in:
+            raise UserInputError(
+                f"{o('measured_sign')} -1 needs the measured output column in {data_label} (see {o('measured')}); "
+                f"columns: {sorted(cols_in)}"
+            )
+        cols_in[measured_col] = -np.asarray(cols_in[measured_col], dtype=np.float64)
+        note(
+            f"reading '{measured_col}' with its sign flipped ({o('measured_sign')} -1): the scores"
+            f"{', the calibration' if segment is not None else ''} and any start estimate use -{measured_col}; the output "
+            "CSV keeps the column as read"
+        )
     if initial_state != "fit":
         from ..models._initial_state import with_initial_state
 
@@ -481,7 +532,13 @@ def simulate_record(
             scores["output_scale_check"] = scale
             if scale.get("warning"):
                 warn(scale["warning"])
-        cols[measured_col] = ym
+            # the raw model's output: a calibration fitted on a reversed column cannot flip it, only distort it
+            sign = output_sign_check(ym[finite], (y_raw if calibration is not None else y)[finite], measured_col,
+                                     o("measured_sign"), measured_sign)  # fmt: skip
+            scores["output_sign_check"] = sign
+            if sign.get("warning"):
+                warn(sign["warning"])
+        cols[measured_col] = cols_as_read[measured_col]
     if metrics_file is not None and scores is None:  # checked before anything is written
         raise UserInputError(f"{o('metrics_file')} needs a measured output column in the CSV (see {o('measured')})")
     if out is not None:
@@ -503,6 +560,7 @@ def simulate_record(
                 "effective_input_range_check": next((c for c in checks[1:] if c.get("what") == "effective input"), None),
                 "branch_check": next((c for c in checks if c.get("what") == "branches"), None),
                 "processing": list(rec.processing),
+                "measured_sign": measured_sign,
             },
         )
     return SimulationResult(
