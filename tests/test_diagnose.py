@@ -461,6 +461,7 @@ def test_agreement_names_effects_selected_on_more_than_half_of_the_records():
     assert agreement([[], []])["consistent"] == []
 
 
+@pytest.mark.slow  # suite time (12 s): the one-record diagnose CLI tests stay in the default suite
 def test_cli_several_records_diagnoses_each_and_reports_agreement(truth, drives, tmp_path, capsys):
     """`smafl diagnose A.csv B.csv`: each record diagnosed on its own in OUT/<record>/, the set's answer in OUT."""
     from smafl_jax.cli import main

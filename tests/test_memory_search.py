@@ -81,6 +81,7 @@ def test_solve_gram_survives_a_gram_matrix_made_indefinite_by_rounding(rng):
     assert np.all(got.x[nonneg] >= 0.0)
 
 
+@pytest.mark.slow  # suite time (11 s): the memory search runs in the cascade start test below
 def test_search_recovers_a_random_memory_that_uniform_starts_miss(rng):
     x = _drive(rng)
     truth, frac, y = _truth(rng, x, noise=0.002)

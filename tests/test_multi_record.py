@@ -138,6 +138,7 @@ def test_cli_fit_several_files_folder_and_glob(tmp_path, capsys):
     assert chk["n_above"] == int(np.sum(u2 > doc["data"]["input_range"][1])) > 0 and chk["n_below"] == 0
 
 
+@pytest.mark.slow  # suite time (11 s): resampled fits are tested in test_interpolated_samples
 def test_cli_fit_one_record_resample_baselines_and_checks(tmp_path, capsys):
     t, u, y = make(3, n=260)
     keep = np.ones(t.size, bool)

@@ -167,6 +167,7 @@ def test_recovery_from_synthetic_forcs(rng):
     assert np.all(np.asarray(fitted.w) >= 0.0)
 
 
+@pytest.mark.slow  # suite time (11 s): the Preisach fit and its grid rule are tested in the default suite
 def test_inner_cv_picks_the_true_grid(rng):
     truth = _smooth_truth(n=12)
     inputs = _forc_input([3.1, 2.9, 2.7, 2.5, 2.3, 2.1, 1.7])

@@ -157,7 +157,7 @@ def test_trained_effective_range_holds_the_fitted_start_state():
     import dataclasses
 
     from smafl_jax.effects import ExtendedModel
-    from smafl_jax.models._range import effective_range
+    from smafl_jax.models import effective_range
 
     truth = sj.load_model(DATASETS / "truth.json")
     cold = dataclasses.replace(truth, thermal=dataclasses.replace(truth.thermal, init="ambient"))

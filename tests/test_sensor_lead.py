@@ -137,6 +137,7 @@ def test_one_trace_for_new_parameter_values(steps):
         run(_eff(lead, tau), jnp.asarray(steps))
 
 
+@pytest.mark.slow  # suite time (15 s): the lead stage, its gradient and reference loop stay in the default suite
 def test_fit_recovers_a_sensor_lag(eupi):
     """Synthetic record with known truth: the EUPI sees the material temperature, the input column is a 3 s sensor
     lag of it; the diagnosis' fit of ``sensor_lead`` finds the lead time and beats the base model."""

@@ -50,7 +50,7 @@ from ._preisach import (
     tikhonov_matrix,
 )
 from ._preisach_gauss import GaussianPreisach
-from ._range import branch_check, hysteresis_values, range_check, trained_branches, trained_branches_of
+from ._range import branch_check, effective_range, hysteresis_values, range_check, trained_branches, trained_branches_of
 from ._simulate import simulate, simulate_batch
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
@@ -119,5 +119,6 @@ __all__ = [
     "branch_check",
     "trained_branches",
     "trained_branches_of",
+    "effective_range",
     "hysteresis_values",
 ]

@@ -238,7 +238,8 @@ def output_sign_check(measured: np.ndarray, simulated: np.ndarray, column: str, 
         how = (
             f"drop {option} -1: the column may read the right way as it is"
             if sign == -1
-            else f"rerun with {option} -1 (or refit on records read this way)"
+            else f"rerun with {option} -1 (and --calibrate START:END, or output_offset, for the sensor's own zero), or refit "
+            "on records read this way"
         )
         read = "flipped as asked" if sign == -1 else "as read"
         out["warning"] = (
