@@ -43,6 +43,7 @@ def test_stride_rule():
     assert fit_stride(120_000, 0.3) == 1
 
 
+@pytest.mark.slow  # suite time (14 s): the block-RMS view and the stride rule stay in the default suite
 def test_fit_record_uses_the_view_and_scores_at_full_rate(monkeypatch, tmp_path):
     from smafl_jax.report import fit_record
 

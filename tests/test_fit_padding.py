@@ -79,6 +79,7 @@ def _gains_only(model):
     return eqx.tree_at(lambda s: [getattr(s.hysteresis, f) for f in fields], spec, [True] * len(fields))
 
 
+@pytest.mark.slow  # suite time (11 s): the padded joint fit (bounded least squares, gain prior) stays in the default suite
 def test_padded_fit_is_the_unpadded_fit():
     (rec,), model = _records((601,))
     assert bucket_length(601) > 601
