@@ -273,6 +273,9 @@ def _print_extras(doc):
     if dc.get("n_findings"):
         counts = ", ".join(f"{n} {k}" for k, n in sorted(dc["counts"].items()))
         print(f"data checks: {dc['n_findings']} finding(s) ({counts}); see report.md (nothing was changed)")
+        for f in dc.get("findings", []):
+            if f["action"] == "check":  # a finding that may explain the fit's error itself: worth reading now
+                print(f"data checks: {f['record']} {f['kind']}: {f['message']}")
 
 
 def _run_records(args, records, grid):

@@ -107,8 +107,24 @@ Detectors on one record (`check_record`):
   interpolated samples are not measurements); a repeated gap spacing is named
   as bursts.  Each gap of at least ``LONG_GAP_STEPS`` (10) sample times is also
   listed on its own: ``cut`` when the record on one side of it is under
-  ``CUT_SIDE`` (10 %) of the record, else ``mark``.
+  ``CUT_SIDE`` (10 %) of the record, else ``mark``; but when at least
+  ``PERIODIC_GAPS`` (5) long gaps start at a regular spacing (80 % within
+  ``PERIODIC_RTOL``, 20 %, of the median spacing) they are the logger's
+  rhythm: said once in the sampling finding, and only those over twice the
+  median long gap are listed (cutting before one of a rhythm's gaps removes a
+  burst, not a fault).
 
+- ``gap_input`` (input; sampling gaps that hide the drive).  Rule: on the
+  time stamps as read (a resampled record's `Record.as_read`), a gap (a step
+  that misses at least one sample: 1.5 sample times or more) "hides" a change of the input when the
+  input differs by more than ``GAP_INPUT_REL`` (10 %) of its range across it,
+  or, with probability 1 - (1 - p)^m, when the input moves that much in a
+  fraction p of the ordinary steps and the gap misses m samples (a PWM edge
+  falls into a gap as often as into any m steps).  Flagged when the expected
+  fraction of such gaps is at least ``GAP_INPUT_FRAC`` (10 %): the resampled
+  input is a straight line there, not the drive the actuator saw, and every
+  fit and score after such a gap carries that error (a true plant driven by
+  the interpolated input scores far above the noise).  Action: ``check``.
 - ``sample_time`` (plausibility, the one rule in physical units): a sample
   time above ``SLOW_DT_S`` (5 s) on a record of more than ``SLOW_MIN_SAMPLES``
   (1000) samples driven by a voltage (thermal time constants of seconds, so a
@@ -200,6 +216,10 @@ GLITCH_ROUGH = 3.0
 GLITCH_MAX_JUMPS = 100
 REST_HALF = 0.5
 RANGE_COVER = 2
+GAP_INPUT_REL = 0.1
+GAP_INPUT_FRAC = 0.1
+PERIODIC_GAPS = 5
+PERIODIC_RTOL = 0.2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -266,6 +286,26 @@ def noise_scale(x: np.ndarray, measured: np.ndarray | None = None) -> float:
     if s == 0.0:
         s = 1.2533 * float(np.mean(dev))
     return s / math.sqrt(6.0)
+
+
+def noise_scale_on_stamps(t: np.ndarray, x: np.ndarray, max_step: float) -> float:
+    """`noise_scale` on irregular time stamps: each sample's distance from the straight line through its two
+    neighbours, scaled to the noise SD (variance (1 + a^2 + b^2) sigma^2 for interpolation weights a, b; on a
+    uniform grid this is the second difference / -2).  A line has no residual, so a slope between jittered stamps
+    adds none; triples with a step over ``max_step`` (a gap, where the signal moves) or a non-finite value are left
+    out."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    if t.size < 5:
+        return 0.0
+    d0, d1 = np.diff(t)[:-1], np.diff(t)[1:]
+    a = d1 / (d0 + d1)  # weight of the left neighbour in the line through both at t[k]
+    r = (x[1:-1] - (a * x[:-2] + (1 - a) * x[2:])) / np.sqrt(1 + a**2 + (1 - a) ** 2)
+    r = r[(d0 <= max_step) & (d1 <= max_step) & np.isfinite(r)]
+    if r.size < 3:
+        return 0.0
+    dev = np.abs(r - np.median(r))
+    s = 1.4826 * float(np.median(dev))
+    return s if s > 0 else 1.2533 * float(np.mean(dev))
 
 
 def _medfilt(x: np.ndarray, w: int) -> np.ndarray:
@@ -751,6 +791,12 @@ def _sampling(rec: Record, dt_rtol: float) -> list[Finding]:
         if counts.max() >= 0.8 * runs.size:
             burst = f"; bursts of {int(vals[np.argmax(counts)])} samples"
     lengths = ends - starts if gaps else np.zeros(0)
+    periodic = _periodic_long_gaps(starts, lengths, step)
+    if periodic is not None:
+        burst += (
+            f"; {int(periodic.sum())} long gaps (>= {LONG_GAP_STEPS} sample times, median {np.median(lengths[periodic]):.3g} s) "
+            f"come every {np.median(np.diff(starts[periodic])):.3g} s: a logger's rhythm, not listed one by one"
+        )
     if kept:
         n_short = int(np.sum(irregular)) - len(gaps)
         msg = (
@@ -769,9 +815,10 @@ def _sampling(rec: Record, dt_rtol: float) -> list[Finding]:
             f"{burst}; {grid_in_gap} of {n} samples ({grid_in_gap / n:.1%}) are interpolated, not measured: fit, diagnose and their scores give them no weight"
         )
         out.append(_finding(rec, "irregular_sampling", "time_s", 0, n, math.nan, math.nan, msg, "mark"))
-    for (a_t, b_t), L in zip(gaps, lengths):
-        if L < LONG_GAP_STEPS * step:
-            continue
+    out += _gap_input(rec, step)
+    for i, ((a_t, b_t), L) in enumerate(zip(gaps, lengths)):
+        if L < LONG_GAP_STEPS * step or (periodic is not None and periodic[i]):
+            continue  # short, or one of the logger's rhythm (said once in the sampling finding)
         # the samples strictly inside the gap (interpolated ones); kept stamps have none: then the two around it
         a = int(np.searchsorted(t, a_t, side="right"))
         b = int(np.searchsorted(t, b_t, side="left"))
@@ -802,6 +849,64 @@ def _sampling(rec: Record, dt_rtol: float) -> list[Finding]:
             )
         )
     return out
+
+
+def _periodic_long_gaps(starts: np.ndarray, lengths: np.ndarray, step: float) -> np.ndarray | None:
+    """Mask of the long gaps that are a logger's rhythm (module docstring, ``gap``), or None when they are not one."""
+    long = lengths >= LONG_GAP_STEPS * step
+    if long.sum() < PERIODIC_GAPS:
+        return None
+    spacing = np.diff(starts[long])
+    regular = np.abs(spacing - np.median(spacing)) <= PERIODIC_RTOL * np.median(spacing)
+    if regular.mean() < 0.8:
+        return None
+    return long & (lengths <= 2 * np.median(lengths[long]))
+
+
+def _gap_input(rec: Record, step: float) -> list[Finding]:
+    """``gap_input`` (module docstring): gaps in the stamps as read across or inside which the input changes."""
+    raw = rec if rec.as_read is None and not rec.gaps else rec.as_read
+    if raw is None:  # resampled without its stamps as read: nothing to judge the gaps by
+        return []
+    t, u = np.asarray(raw.time, float), np.asarray(raw.u, float)
+    rng = robust_range(rec.u)
+    d = np.diff(t)
+    # a gap that misses at least one sample; a jittered step (1.2 steps long) hides nothing
+    gap = d >= 1.5 * step
+    if not gap.any() or not math.isfinite(rng) or (~gap).sum() < 10:
+        return []
+    moves = np.abs(np.diff(u)) > GAP_INPUT_REL * rng
+    p = float(moves[~gap].mean())
+    missed = np.round(d[gap] / step) - 1
+    hides = np.where(moves[gap], 1.0, 1.0 - (1.0 - p) ** missed)
+    frac = float(hides.mean())
+    if frac < GAP_INPUT_FRAC:
+        return []
+    k_gap = np.flatnonzero(gap)
+    across = np.abs(np.diff(u))[gap]
+    likely = k_gap[hides >= 0.5] if (hides >= 0.5).any() else k_gap
+    a = int(np.searchsorted(rec.time, t[likely[0]], side="left"))
+    b = int(np.searchsorted(rec.time, t[likely[-1] + 1], side="right"))
+    n_across = int(moves[gap].sum())
+    return [
+        _finding(
+            rec,
+            "gap_input",
+            rec.input_name,
+            a,
+            b,
+            float(across.max()),
+            rng,
+            f"about {frac:.0%} of the {gap.sum()} sampling gaps (median {np.median(d[gap]):.3g} s) hide or straighten a "
+            f"change of the input: it differs by more than {GAP_INPUT_REL:.0%} of its range across {n_across} of them (up "
+            f"to {across.max():.4g}), and it moves that much in {p:.1%} of the ordinary steps, so a gap of "
+            f"{int(np.median(missed))} missing samples misses such a move with probability "
+            f"{1 - (1 - p) ** np.median(missed):.0%}. Across a gap the resampled input is a straight line, not the drive the "
+            "actuator saw: every fit and score after such a gap carries that error, and a fit cannot tell it from misfit. "
+            "Log faster than the drive changes (or log its set-points), or fit a stretch without gaps",
+            "check",
+        )
+    ]
 
 
 def _slow_clock(rec: Record) -> list[Finding]:

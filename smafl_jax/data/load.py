@@ -235,7 +235,9 @@ def _pick(path, header, wanted, candidates, role, option, *, taken=(), notes=Non
     """The ``role`` column: ``wanted`` if named, else the first of ``candidates`` in the header, else the one column whose
     name without its unit is a candidate (``voltage (V)``, ``displacement [mm]``), else the one column ``like`` accepts
     (the input: a drive voltage by `names.is_voltage`, e.g. ``U`` or ``Spannung [V]``; the output: the only column left),
-    ``like_why`` saying why; a column picked by the last two rules is named in ``notes``."""
+    ``like_why`` saying why; a column picked by the last two rules is named in ``notes``.  Messages name the CLI
+    ``option`` and the Python keyword (``role``): `load_record` serves both."""
+    choose = f"{option} COLUMN (Python: {role}=COLUMN)"
     if wanted is not None:
         if wanted not in header:
             raise DataError(path, f"no {role} column '{wanted}'; columns are {header}", column=wanted)
@@ -251,11 +253,11 @@ def _pick(path, header, wanted, candidates, role, option, *, taken=(), notes=Non
         hits = [c for c in free if rule is not None and rule(c)]
         if len(hits) == 1:
             if notes is not None:
-                notes.append(f"{role} column '{hits[0]}' (recognised by {why}; {option} COLUMN to choose another)")
+                notes.append(f"{role} column '{hits[0]}' (recognised by {why}; {choose} to choose another)")
             return hits[0]
         if len(hits) > 1:
-            raise DataError(path, f"several columns could be the {role}: {hits}; choose one with {option} COLUMN")
-    raise DataError(path, f"cannot tell which column is the {role}; choose one of {header} with {option} COLUMN")
+            raise DataError(path, f"several columns could be the {role}: {hits}; choose one with {choose}")
+    raise DataError(path, f"cannot tell which column is the {role}; choose one of {header} with {choose}")
 
 
 def _lines_text(lines) -> str:
@@ -669,6 +671,7 @@ def resample_record(rec: Record, dt: float | str = "auto", *, dt_rtol: float = D
         dt=dt,
         processing=(*rec.processing, msg),
         gaps=gaps,
+        as_read=rec if rec.as_read is None else rec.as_read,  # resampled twice: the stamps of the file
     )
 
 

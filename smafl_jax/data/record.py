@@ -56,6 +56,10 @@ class Record:
     bridged.  ``load``: a per-record load from the sidecar (``"load": 200``; its
     unit in ``units["load"]``).  ``metadata``: the whole sidecar object.
     ``time_name``: the file's time column (``time`` holds it in seconds whatever its unit in the file).
+    ``as_read``: for a resampled record, the record on its time stamps as read (irregular, not for fitting); None
+    otherwise.  Kept for what interpolation destroys: the output noise (`smafl_jax.noise_floor` estimates it there:
+    interpolating between jittered stamps averages neighbouring samples, and read 1.7x low) and the input between
+    gaps (`smafl_jax.data.check_record`).
     """
 
     time: np.ndarray
@@ -75,6 +79,7 @@ class Record:
     metadata: dict = dataclasses.field(default_factory=dict)
     record_name: str = ""
     time_name: str = "time_s"
+    as_read: Record | None = None
 
     def __len__(self) -> int:
         return int(self.time.shape[0])

@@ -98,32 +98,58 @@ def _as_array(x: Any, what: str) -> np.ndarray:
         raise UserInputError(f"{what}: expected an array of numbers, got {type(x).__name__}") from None
 
 
-def as_fit_data(data: Any, dt: float | None = None, *, model: Any = None) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
+def as_fit_data(
+    data: Any, dt: float | None = None, *, model: Any = None, names: Sequence[str] | None = None
+) -> tuple[tuple[np.ndarray, np.ndarray, float], ...]:
     """Normalise fit data to a tuple of ``(u, y, dt)`` float64 numpy triples.
 
     Accepts a `Record`, a sequence of `Record`, a ``(u, y)`` pair with ``dt``, one ``(u, y, dt)`` triple
     or a sequence of them.  Plain arrays carry no time, so they need ``dt`` (the sample time in seconds), unless
     ``model`` is given and its output does not depend on time (a hysteresis model on its own,
     `smafl_jax.models._simulate.uses_sample_time`).  Bad shapes, non-finite values and a missing or non-positive
-    ``dt`` raise `UserInputError` naming the record, the array and the first bad index.
+    ``dt`` raise `UserInputError` naming the record, the array and the first bad index.  ``names``: one name per
+    record, used in those messages (``fit data 'run_03' (0): ...`` instead of ``fit data 0: ...``).
     """
+    items = _fit_items(data, "fit data")
+    if names is not None:
+        names = [str(n) for n in names]
+        if len(names) != len(items):
+            raise UserInputError(f"fit data: got {len(names)} names for {len(items)} records")
+    labels = [_fit_label(i, None if names is None else names[i]) for i in range(len(items))]
+    return _normalised(items, dt, model, labels)
+
+
+def _fit_label(i: int, name: str | None = None) -> str:
+    """How an error message names fit record ``i``: ``fit data 'run_03' (3)`` when it has a name, else ``fit data 3``."""
+    return f"fit data {name!r} ({i})" if name else f"fit data {i}"
+
+
+def _fit_items(data: Any, label: str) -> list:
+    """The records of fit data as a list (one `Record` or ``(u, y[, dt])`` tuple each), not yet checked."""
     from ..data._data import Record
 
     if isinstance(data, Record):
-        data = [data]
-    elif _is_pair(data, Record):
-        data = [data]  # one (u, y) pair or (u, y, dt) triple, not a sequence of two or three records
-    elif isinstance(data, np.ndarray) or not isinstance(data, Iterable):
+        return [data]
+    if _is_pair(data, Record):
+        return [data]  # one (u, y) pair or (u, y, dt) triple, not a sequence of two or three records
+    if isinstance(data, np.ndarray) or not isinstance(data, Iterable):
         shape = f" of shape {np.shape(data)}" if isinstance(data, np.ndarray) else ""
         raise UserInputError(
-            f"fit data: expected a Record, a (u, y) tuple, a (u, y, dt) tuple or a list of them, got {type(data).__name__}{shape}"
+            f"{label}: expected a Record, a (u, y) tuple, a (u, y, dt) tuple or a list of them, got {type(data).__name__}{shape}"
         )
+    return list(data)
+
+
+def _normalised(items: list, dt: float | None, model: Any, labels: Sequence[str]) -> tuple:
+    """`as_fit_data` of `_fit_items`, each record's errors starting with its entry of ``labels``."""
+    from ..data._data import Record
+
     needs_dt = model is None or uses_sample_time(model)
     out = []
-    for i, item in enumerate(data):
+    for item, label in zip(items, labels, strict=True):
         if isinstance(item, Record):
             if item.y is None:
-                raise UserInputError(f"record {i} ({item.name}) has no output column to fit")
+                raise UserInputError(f"{label}: the record ({item.name}) has no output column to fit")
             u, y, d = item.u, item.y, item.dt
         elif isinstance(item, (tuple, list)) and len(item) in (2, 3):
             u, y, d = item if len(item) == 3 else (*item, None)
@@ -132,37 +158,37 @@ def as_fit_data(data: Any, dt: float | None = None, *, model: Any = None) -> tup
         else:
             shape = f" of shape {np.shape(item)}" if isinstance(item, np.ndarray) else ""
             raise UserInputError(
-                f"fit data {i}: expected a Record or a (u, y) / (u, y, dt) tuple, got {type(item).__name__}{shape}"
+                f"{label}: expected a Record or a (u, y) / (u, y, dt) tuple, got {type(item).__name__}{shape}"
                 + ("; pass one record as a tuple (u, y), not a list [u, y]" if np.ndim(item) == 1 else "")
             )
-        u = _as_array(u, f"fit data {i}: input u")
-        y = _as_array(y, f"fit data {i}: output y")
+        u = _as_array(u, f"{label}: input u")
+        y = _as_array(y, f"{label}: output y")
         for name, x in (("input u", u), ("output y", y)):
             if x.ndim != 1:
                 raise UserInputError(
-                    f"fit data {i}: the {name} must be 1-D (one sample per time step), got shape {x.shape}"
+                    f"{label}: the {name} must be 1-D (one sample per time step), got shape {x.shape}"
                     + (f"; one column (N, 1): pass {name[-1]}[:, 0]" if x.ndim == 2 and x.shape[1] == 1 else "")
                 )
         if u.shape != y.shape:
-            raise UserInputError(f"fit data {i}: the input u has {u.shape[0]} samples but the output y has {y.shape[0]}")
+            raise UserInputError(f"{label}: the input u has {u.shape[0]} samples but the output y has {y.shape[0]}")
         if u.shape[0] < MIN_FIT_SAMPLES:
-            raise UserInputError(f"fit data {i}: need at least {MIN_FIT_SAMPLES} samples, got {u.shape[0]}")
+            raise UserInputError(f"{label}: need at least {MIN_FIT_SAMPLES} samples, got {u.shape[0]}")
         for name, x in (("input u", u), ("output y", y)):
             bad = first_bad(x)
             if bad is not None:
                 raise UserInputError(
-                    f"fit data {i}: the {name} is not finite at index {bad[0][0]} (value {bad[1]}); remove or fill it first"
+                    f"{label}: the {name} is not finite at index {bad[0][0]} (value {bad[1]}); remove or fill it first"
                 )
         if d is None:
             if needs_dt:
                 kind = f"a {type(model).__name__}'s output depends on time" if model is not None else "the model needs it"
                 raise UserInputError(
-                    f"fit data {i}: dt (the sample time in seconds) is required: plain (u, y) arrays carry no time and "
+                    f"{label}: dt (the sample time in seconds) is required: plain (u, y) arrays carry no time and "
                     f"{kind}; pass it, e.g. sj.fit(model, (u, y), 0.05), or a Record (sj.load_record), which carries "
                     "its own"
                 )
             d = UNUSED_DT
-        check_sample_time(d, f"fit data {i}: dt")
+        check_sample_time(d, f"{label}: dt")
         out.append((u, y, float(d)))
     if not out:
         raise UserInputError("no data to fit")
@@ -854,24 +880,34 @@ def fit_many(
     Records whose lengths share a `smafl_jax.models.bucket_length` reuse the same compiled code (`fit` pads them; one
     compile per bucket); the k1 profile inside each fit is one `vmap` over candidates.
     A record that cannot be fitted gives its `UserInputError` in the list
-    instead of stopping the batch.  ``progress``: one line per record on the progress logger, shown on
+    instead of stopping the batch; its message names the entry: ``fit data 'run_03' (3): ...`` with ``names``, else
+    ``fit data 3: ...`` (its place in ``datasets``).  ``progress``: one line per record on the progress logger, shown on
     stderr unless logging is configured (`smafl_jax._progress.shown`).
     """
     datasets = list(datasets)
     weights = [None] * len(datasets) if weights is None else list(weights)
-    names = [f"#{i}" for i in range(len(datasets))] if names is None else list(names)
+    if names is not None:
+        names = [str(n) for n in names]
+    for what, given in (("weights", weights), ("names", names)):
+        if given is not None and len(given) != len(datasets):  # zip would silently drop the records beyond the shorter
+            raise UserInputError(f"fit_many: got {len(given)} {what} for {len(datasets)} datasets")
     out = []
     t0 = time.perf_counter()
-    for i, (d, w, name) in enumerate(zip(datasets, weights, names)):
+    for i, (d, w) in enumerate(zip(datasets, weights)):
+        name = None if names is None else names[i]
         try:
-            r = fit(model, d, weights=w, **kwargs)
+            # checked here, where the entry's place and name are known (inside `fit` every entry is record 0)
+            label = _fit_label(i, name)
+            items = _fit_items(d, label)
+            labels = [label] if len(items) == 1 else [f"{label}, record {j}" for j in range(len(items))]
+            r = fit(model, _normalised(items, kwargs.get("dt"), model, labels), weights=w, **kwargs)
         except UserInputError as exc:
             r = exc
         out.append(r)
         if progress:
             status = f"loss {r.loss:.4g}, {r.message}" if isinstance(r, FitResult) else f"failed: {r}"
             el = time.perf_counter() - t0
-            say(f"[{i + 1}/{len(datasets)}] {name}: {status} ({el:.1f} s elapsed)")
+            say(f"[{i + 1}/{len(datasets)}] {name or f'#{i}'}: {status} ({el:.1f} s elapsed)")
     return out
 
 

@@ -162,7 +162,15 @@ def fit_record(record, *, model="auto", progress=False, **options):
     (fit.json ``settings.structure_choice``, with each candidate's RMSE and e_r); a drive voltage gets every class behind
     the Joule thermal lag (the cascades), compared the same way.
     For every structure with a hysteresis part the output orientation and, for a cascade, the thermal start state
-    are screened on the training samples (`screen_start`) before the joint refinement.  Options: see `_fit_structure`.
+    are screened on the training samples (`smafl_jax.identify.screen_start`) before the joint refinement.
+
+    Options, each the ``smafl fit`` flag of the same name with the same default (``smafl fit --help``): ``split``
+    ("auto", "branch", "time", "none"), ``val_fraction`` (0.3), ``solver`` ("lm", one of `smafl_jax.SOLVERS`),
+    ``max_steps`` (300), ``thresholds`` / ``tilts`` (None), ``grid`` (dict of ``n_sym``, ``n_alpha``, ``n_asym``,
+    ``poly_order``), ``orientation``, ``thermal_start``, ``sees``, ``memory`` (all "auto"), ``refit`` (True; the
+    flag is ``--no-refit``), ``gain_prior`` (1.0, None for plain least squares), ``early_stopping`` and ``median``
+    (False).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
+    a model as given, without the screening or the split.
     """
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")

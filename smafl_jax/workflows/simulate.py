@@ -521,7 +521,13 @@ def simulate_record(
 
             # the record's measured column with its gaps: blank cells and samples interpolated across a resampling gap
             # are left out of the noise estimate (a straight line has no noise)
-            scores["noise"] = noise_floor([dataclasses.replace(rec, y=ym)], scored={"rmse": scores["rmse"]})
+            # (a resampled record's noise is read on its stamps as read: the measured column there, signed as scored)
+            raw = rec.as_read
+            raw_col = None if raw is None else _columns(raw).get(measured_col)
+            as_read = (
+                None if raw_col is None else dataclasses.replace(raw, y=measured_sign * np.asarray(raw_col, dtype=np.float64))
+            )
+            scores["noise"] = noise_floor([dataclasses.replace(rec, y=ym, as_read=as_read)], scored={"rmse": scores["rmse"]})
             if n_left:
                 scores["n_left_out"] = n_left
                 scores["left_out_rule"] = "blank / NaN measured cells: left out of every score (kept in the output CSV)"
