@@ -1,6 +1,6 @@
 """Fit every record (*.csv) in a folder and write one summary table.
 
-    python experiments/fit_folder.py FOLDER --out OUTDIR [--model auto] [--input COL --output COL --split auto]
+    python experiments/fit_folder.py FOLDER --out OUTDIR [any option of smafl fit: --model, --input, --resample, ...]
 
 Each record gets its own sub-folder (fit.json, report.md, figures).  OUTDIR/summary.csv (read it with any CSV
 reader) and OUTDIR/summary.md are both rewritten after every record, each atomically (a temporary file in OUTDIR,
@@ -8,8 +8,9 @@ then os.replace): a batch stopped by Ctrl-C or a crash keeps the rows of the rec
 batch leaves them complete.  Records that cannot be loaded or fitted are listed with the reason instead of
 stopping the batch.  Records of equal length reuse the compiled code.  Progress goes to stderr, one line per record.
 
-The fit options and their defaults are those of ``smafl fit`` (read from its parser), so ``--model cascade``
-here fits what ``smafl fit REC.csv --model cascade`` fits; the default is ``--model auto`` (every hysteresis
+Every option but FOLDER and --out is parsed by ``smafl fit``'s own parser and turned into `fit_record` keywords by
+`smafl_jax.cli.fit.record_fit_options`, so ``--model cascade`` here fits what ``smafl fit REC.csv --model cascade``
+fits (``smafl fit --help`` lists them); the default is ``--model auto`` (every hysteresis
 class compared; behind the thermal lag for a drive voltage), with the thresholds and tilts trained as ``smafl
 fit`` trains them (``--thresholds`` / ``--tilts``: on for auto, off otherwise).  A rerun into an OUTDIR that
 holds results says so, as ``smafl fit`` does (`smafl_jax.prepare_out_dir`), and replaces the files of the same
@@ -21,7 +22,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import math
 import sys
 import time
 from pathlib import Path
@@ -31,9 +31,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import smafl_jax as sj
-from smafl_jax._choices import MEMORY, SPLITS  # private: the option lists of `smafl fit`, so the flags match it
 from smafl_jax.cli import build_parser
-from smafl_jax.report import MODELS, fit_record, write_fit_outputs
+from smafl_jax.cli.check import apply_window
+from smafl_jax.cli.fit import record_fit_options
+from smafl_jax.data._data import parse_resample  # private: how smafl fit reads --resample, so the batch reads it alike
+from smafl_jax.report import fit_record, write_fit_outputs
 
 COLUMNS = [
     "file",
@@ -55,80 +57,25 @@ COLUMNS = [
     "status",
 ]
 
-#: ``smafl fit``'s defaults (its parser on a placeholder record): one source for the flags below.
-CLI_DEFAULTS = vars(build_parser("fit").parse_args(["fit", "record.csv"]))
-
-
-def _gain_prior(text: str) -> float | None:
-    """``--gain-prior``: a number > 0, or none (as ``smafl fit`` reads it)."""
-    if text.strip().lower() == "none":
-        return None
-    try:
-        kappa = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0 or 'none', got {text!r}") from None
-    if not (math.isfinite(kappa) and kappa > 0):
-        raise argparse.ArgumentTypeError(f"expected a number > 0 or 'none', got {text!r}")
-    return kappa
-
-
-def _resample(text: str) -> float | str:
-    return text if text == "auto" else float(text)
-
 
 def parser() -> argparse.ArgumentParser:
-    d = CLI_DEFAULTS
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        epilog="Every other option is smafl fit's, with its defaults (smafl fit --help); --window applies to each record.",
+    )
     ap.add_argument("folder", help="folder of record CSVs (its *.csv, each fitted on its own)")
     ap.add_argument("--out", required=True, help="output folder: one sub-folder per record, summary.csv, summary.md")
-    ap.add_argument("--input", default=None, help="input column (default: as smafl fit finds it)")
-    ap.add_argument("--output", default=None, help="output column (default: as smafl fit finds it)")
-    ap.add_argument("--time", default=None, metavar="COL", help="time column (default: as smafl fit finds it)")
-    ap.add_argument("--resample", type=_resample, default=None, metavar="DT|auto", help="as smafl fit --resample")
-    ap.add_argument("--model", choices=MODELS, default=d["model"], help=f"as smafl fit --model (default {d['model']})")
-    ap.add_argument("--split", choices=SPLITS, default=d["split"], help=f"as smafl fit (default {d['split']})")
-    ap.add_argument("--val-fraction", type=float, default=d["val_fraction"], help=f"default {d['val_fraction']}")
-    ap.add_argument("--solver", choices=sj.SOLVERS, default=d["solver"], help=f"default {d['solver']}")
-    ap.add_argument("--max-steps", type=int, default=d["max_steps"], help=f"default {d['max_steps']}")
-    for flag in ("thresholds", "tilts"):
-        ap.add_argument(
-            f"--{flag}",
-            action=argparse.BooleanOptionalAction,
-            default=d[flag],
-            help=f"train the {flag} (default: as smafl fit, on for --model auto, off otherwise)",
-        )
-    ap.add_argument("--memory", choices=MEMORY, default=d["memory"], help=f"default {d['memory']}")
-    starts = {"orientation": ("auto", "rises", "falls"), "thermal_start": ("auto", "steady", "cold", "fitted")}
-    for flag, choices in {**starts, "sees": ("auto", "voltage", "heat")}.items():  # smafl fit's choices
-        ap.add_argument(f"--{flag.replace('_', '-')}", choices=choices, default=d[flag], help=f"as smafl fit (default {d[flag]})")
-    ap.add_argument("--gain-prior", type=_gain_prior, default=d["gain_prior"], metavar="KAPPA", help="as smafl fit")
-    for flag in ("n_sym", "n_alpha", "n_asym", "poly_order"):
-        ap.add_argument(f"--{flag.replace('_', '-')}", type=int, default=d[flag], help=f"default {d[flag]}")
-    ap.add_argument("--no-refit", action="store_true", help="as smafl fit --no-refit")
-    ap.add_argument("--early-stopping", action="store_true", help="as smafl fit --early-stopping")
-    ap.add_argument("--no-figures", action="store_true")
     return ap
+
+
+def fit_args(rest: list[str]) -> argparse.Namespace:
+    """``smafl fit``'s flags (all but the batch's own) parsed by its own parser, on a placeholder record."""
+    return build_parser("fit").parse_args(["fit", "record.csv", *rest])
 
 
 def fit_options(args: argparse.Namespace) -> dict:
     """The keywords ``smafl fit`` passes to `fit_record` for the same flags (without its progress lines)."""
-    return dict(
-        model=args.model,
-        split=args.split,
-        val_fraction=args.val_fraction,
-        solver=args.solver,
-        max_steps=args.max_steps,
-        thresholds=args.thresholds,
-        tilts=args.tilts,
-        orientation=args.orientation,
-        thermal_start=args.thermal_start,
-        sees=args.sees,
-        memory=args.memory,
-        refit=not args.no_refit,
-        gain_prior=args.gain_prior,
-        early_stopping=args.early_stopping,
-        grid=dict(n_sym=args.n_sym, n_alpha=args.n_alpha, n_asym=args.n_asym, poly_order=args.poly_order),
-    )
+    return record_fit_options(args, progress=False)
 
 
 def _num(x, fmt: str) -> str:
@@ -175,7 +122,8 @@ def write_summary(out: Path, rows: list[dict]) -> None:
 
 
 def main(argv=None) -> int:
-    args = parser().parse_args(argv)
+    args, rest = parser().parse_known_args(argv)
+    fit = fit_args(rest)
     files = sorted(Path(args.folder).glob("*.csv"))
     if not files:
         print(f"error: no *.csv files in {args.folder}", file=sys.stderr)
@@ -185,17 +133,22 @@ def main(argv=None) -> int:
     except sj.UserInputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    options = fit_options(args)
+    try:
+        options = fit_options(fit)
+    except sj.UserInputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     rows: list[dict] = []
     t0 = time.perf_counter()
     for i, path in enumerate(files):
         row = dict.fromkeys(COLUMNS, "")
-        row.update(file=path.name, model=args.model)
+        row.update(file=path.name, model=fit.model)
         t1 = time.perf_counter()
         try:
-            rec = sj.load_record(path, input=args.input, output=args.output, time=args.time, resample=args.resample)
+            rec = sj.load_record(path, input=fit.input, output=fit.output, time=fit.time, resample=parse_resample(fit.resample))
+            (rec,) = apply_window([rec], fit.window)
             model, doc, masks = fit_record(rec, **options)
-            write_fit_outputs(out / path.stem, rec, doc, masks, figures=not args.no_figures)
+            write_fit_outputs(out / path.stem, rec, doc, masks, figures=not fit.no_figures)
             row = summary_row(path, rec, model, doc, time.perf_counter() - t1)
         except sj.UserInputError as exc:  # DataError is a UserInputError
             row["status"] = f"failed: {exc}"

@@ -259,3 +259,26 @@ def test_sample_help_says_steps_is_at_least_10(capsys):
     with pytest.raises(SystemExit):
         main(["sample", "--help"])
     assert "chain length per walker, at least 10" in " ".join(capsys.readouterr().out.split())
+
+
+def test_a_sweep_axis_the_loop_cannot_feel_is_said_with_the_saturation_behind_it():
+    """A flat axis on the heat map (a new-user trial: K swept on a loop whose drive sat at its limit) is said, and the
+    saturation named when the drive is saturated on most samples; an axis that moves e_mean is not."""
+    from smafl_jax.workflows.sweep import FLAT_AXIS_RTOL, sweep_flat_axes
+
+    kp, K = np.array([1.0, 2.0, 4.0]), np.array([0.0, 5.0])
+    e = np.outer(1.0 / kp, 1.0 + 0.2 * FLAT_AXIS_RTOL * np.array([0.0, 1.0]))  # kp moves e_mean, K by 0.2 % of the limit
+    saturated = np.full(e.shape, 0.8)
+    doc = sweep_flat_axes({"e_mean_mm": e, "saturated_fraction": saturated}, {"kp": kp, "K": K})
+    assert not doc["kp"]["flat"] and "warning" not in doc["kp"]
+    assert doc["K"]["flat"] and doc["K"]["spread"] == pytest.approx(0.2 * FLAT_AXIS_RTOL, rel=1e-9)
+    assert "along K" in doc["K"]["warning"] and "saturated on a median 80 %" in doc["K"]["warning"]
+    calm = sweep_flat_axes({"e_mean_mm": e, "saturated_fraction": 0 * saturated}, {"kp": kp, "K": K})
+    assert "saturated" not in calm["K"]["warning"]
+    # a NaN cell (a diverged configuration) is skipped, not propagated; one value on an axis: nothing to say about it
+    e_nan = e.copy()
+    e_nan[0, 1] = np.nan
+    one = sweep_flat_axes({"e_mean_mm": e_nan, "saturated_fraction": saturated}, {"kp": kp, "K": K})
+    assert one["K"]["flat"] and np.isfinite(one["K"]["spread"])
+    single = sweep_flat_axes({"e_mean_mm": e[:, :1], "saturated_fraction": saturated[:, :1]}, {"kp": kp, "K": K[:1]})
+    assert "K" not in single and not single["kp"]["flat"]

@@ -134,19 +134,12 @@ def run(args):
     from ..identify._metrics import ABOVE_NOISE
     from ..report._report_fit import STATIC_ON_DRIVE, fit_record, write_fit_outputs
 
-    if args.max_steps < 0:
-        raise UserInputError(f"--max-steps must be >= 0, got {args.max_steps}")
-    for name in ("n_sym", "n_alpha", "n_asym"):
-        if getattr(args, name) < 0:
-            raise UserInputError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
-    if args.poly_order < 1:
-        raise UserInputError(f"--poly-order must be >= 1, got {args.poly_order}")
+    options = record_fit_options(args)  # checks the flags before anything is read
     records = load_records(args.data, args.input, args.output, time=args.time, resample=parse_resample(args.resample))
     records = apply_window(records, args.window)
     note = _accelerator_note()
     if note:
         print(note, file=sys.stderr)
-    grid = dict(n_sym=args.n_sym, n_alpha=args.n_alpha, n_asym=args.n_asym, poly_order=args.poly_order)
     import numpy as np
 
     from .._io import check_record_magnitude
@@ -161,20 +154,11 @@ def run(args):
         for note in r.processing:
             print(f"loading {r.name}: {note}", file=sys.stderr)
     if len(records) > 1:
-        return _run_records(args, records, grid)
+        return _run_records(args, records, options["grid"])
     rec = records[0]
     out = prepare_out_dir(args.out or f"fit_{Path(rec.path).stem}")
     print(f"fitting {args.model} to {rec.path} ({len(rec)} samples, {rec.input_name} -> {rec.output_name})", file=sys.stderr)
-    model, doc, masks = fit_record(
-        rec,
-        split=args.split,
-        val_fraction=args.val_fraction,
-        refit=not args.no_refit,
-        memory=args.memory,
-        early_stopping=args.early_stopping,
-        median=args.median,
-        **_model_options(args, grid),
-    )
+    model, doc, masks = fit_record(rec, **options)
     import math
 
     if doc["settings"].get("structure_choice"):  # model auto compared classes: say which won and on what
@@ -236,6 +220,31 @@ def _gain_prior_arg(text):
         return check_gain_prior(text)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def record_fit_options(args, *, progress: bool = True) -> dict:
+    """The keywords `smafl fit` passes to `smafl_jax.report.fit_record` for one record, from its parsed flags (batch
+    scripts such as experiments/fit_folder.py fit what the CLI fits by calling this).  `UserInputError` on a flag
+    out of its range."""
+    from .._errors import UserInputError
+
+    if args.max_steps < 0:
+        raise UserInputError(f"--max-steps must be >= 0, got {args.max_steps}")
+    for name in ("n_sym", "n_alpha", "n_asym"):
+        if getattr(args, name) < 0:
+            raise UserInputError(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
+    if args.poly_order < 1:
+        raise UserInputError(f"--poly-order must be >= 1, got {args.poly_order}")
+    grid = dict(n_sym=args.n_sym, n_alpha=args.n_alpha, n_asym=args.n_asym, poly_order=args.poly_order)
+    return dict(
+        split=args.split,
+        val_fraction=args.val_fraction,
+        refit=not args.no_refit,
+        memory=args.memory,
+        early_stopping=args.early_stopping,
+        median=args.median,
+        **{**_model_options(args, grid), "progress": progress},
+    )
 
 
 def _model_options(args, grid):

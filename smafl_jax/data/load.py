@@ -42,7 +42,11 @@ Reading rules (each documented, nothing changed silently):
   is then interpolated linearly onto ``t0 + k DT`` (integer-valued extra columns
   such as branch labels are held, not interpolated).  Across a gap the linear
   interpolation *bridges* the gap (a straight line between the last sample
-  before and the first after); every bridged interval is kept in
+  before and the first after); a gap is a step of at least ``GAP_STEPS`` (1.5)
+  sample times (and over ``1 + dt_rtol``), one that misses a sample: a
+  jittered step of 1.3 sample times misses none, and its grid points are
+  interpolations like any others between jittered stamps (counting it as a gap
+  left a third of a 30 %-jittered record out of every fit).  Every bridged interval is kept in
   ``Record.gaps`` and summarised in ``Record.processing``, and `check_record`
   reports long gaps so they can be cut or left out of scoring.  Bridging
   rather than splitting keeps one record per file (models carry state through
@@ -88,6 +92,8 @@ DELIMITERS = (",", ";", "\t")
 _DELIM_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Gaps at least this many sample times long are listed one by one in ``processing``.
 LONG_GAP_STEPS = 10
+#: A step of at least this many sample times misses a sample: a gap that resampling bridges (module docstring).
+GAP_STEPS = 1.5
 #: The default time column; without it, a column named like one of `TIME_NAMES` (unit split off) is the time.
 TIME_COLUMN = "time_s"
 #: Names of a time column once lower-cased and stripped of their unit (English, German, French, Spanish, Italian).
@@ -631,7 +637,8 @@ def resample_record(rec: Record, dt: float | str = "auto", *, dt_rtol: float = D
         note = f"resampling to {dt:g} s requested: the record is already uniform at {med:.6g} s, samples kept as read"
         return dataclasses.replace(rec, dt=med, processing=(*rec.processing, note))
     grid = t[0] + dt * np.arange(math.floor(span / dt * (1 + 1e-12)) + 1)
-    gap_idx = np.flatnonzero(d > (1 + dt_rtol) * dt)
+    gap_step = max(1 + dt_rtol, GAP_STEPS) * dt
+    gap_idx = np.flatnonzero(d >= gap_step)
     gaps = tuple((float(t[k]), float(t[k + 1])) for k in gap_idx)
     in_gap = interpolated_mask(grid, gaps, dt)  # grid points inside a bridged interval: interpolated across missing data
 
@@ -653,7 +660,7 @@ def resample_record(rec: Record, dt: float | str = "auto", *, dt_rtol: float = D
         lengths = d[gap_idx]
         k = int(np.argmax(lengths))
         msg += (
-            f"; {len(gaps)} gap{'s' if len(gaps) > 1 else ''} longer than {(1 + dt_rtol) * dt:.6g} s bridged (lengths "
+            f"; {len(gaps)} gap{'s' if len(gaps) > 1 else ''} of {gap_step:.6g} s or longer bridged (lengths "
             f"{lengths.min():.3g}..{lengths.max():.3g} s, the longest at t = {gaps[k][0]:.6g} s), {int(in_gap.sum())} of "
             f"{grid.size} grid points ({in_gap.mean():.1%}) interpolated across missing data"
         )

@@ -52,9 +52,7 @@ def effective_range(segments) -> list[float] | None:
         vals.append(x[m])
         start = getattr(model, "hysteresis_start", None)
         if m.size and m[0] and start is not None:
-            import jax.numpy as jnp
-
-            x0 = start(jnp.asarray(u, dtype=jnp.float64), dt)
+            x0 = start(np.asarray(u, dtype=np.float64), dt)
             if x0 is not None and np.isfinite(float(x0)):
                 vals.append(np.array([float(x0)]))
     vals = [v for v in vals if v.size]

@@ -222,7 +222,9 @@ SIGN_CORR_WARN = -0.5
 SIGN_RMSE_RATIO = 0.5
 
 
-def output_sign_check(measured: np.ndarray, simulated: np.ndarray, column: str, option: str, sign: int = 1) -> dict:
+def output_sign_check(
+    measured: np.ndarray, simulated: np.ndarray, column: str, option: str, sign: int = 1, calibrate_option: str = "--calibrate"
+) -> dict:
     """Whether the measured column reads the other way from the model's output: their correlation, and the RMSE (each
     with its best constant offset) of the model as read and sign-flipped, with a ``warning`` naming a reversed sensor
     when the flipped model fits far better.  Why: a new-user trial scored a sensor read as ``85 - y`` at 1.6e4x the
@@ -238,7 +240,7 @@ def output_sign_check(measured: np.ndarray, simulated: np.ndarray, column: str, 
         how = (
             f"drop {option} -1: the column may read the right way as it is"
             if sign == -1
-            else f"rerun with {option} -1 (and --calibrate START:END, or output_offset, for the sensor's own zero), or refit "
+            else f"rerun with {option} -1 (and {calibrate_option} START:END, or output_offset, for the sensor's own zero), or refit "
             "on records read this way"
         )
         read = "flipped as asked" if sign == -1 else "as read"
@@ -541,7 +543,7 @@ def simulate_record(
                 warn(scale["warning"])
             # the raw model's output: a calibration fitted on a reversed column cannot flip it, only distort it
             sign = output_sign_check(ym[finite], (y_raw if calibration is not None else y)[finite], measured_col,
-                                     o("measured_sign"), measured_sign)  # fmt: skip
+                                     o("measured_sign"), measured_sign, o("calibrate"))  # fmt: skip
             scores["output_sign_check"] = sign
             if sign.get("warning"):
                 warn(sign["warning"])

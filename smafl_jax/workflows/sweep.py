@@ -156,6 +156,47 @@ def sweep_range_summary(metrics: Mapping[str, np.ndarray], settings: dict) -> di
     return doc
 
 
+#: An axis along which e_mean changes by less than this fraction (over every value of the other axis) is flat.
+FLAT_AXIS_RTOL = 0.01
+#: A median saturated fraction above this on a flat axis: the saturation is named as the likely reason.
+FLAT_SATURATED = 0.5
+
+
+def sweep_flat_axes(metrics: Mapping[str, np.ndarray], axes: Mapping[str, np.ndarray]) -> dict:
+    """Axes along which e_mean barely changes, and whether a saturated drive explains it.
+
+    Why: a new-user trial swept K on a loop whose drive sat at its limit; the heat map showed a flat K axis and nothing
+    said that the gain could not act.  Per axis with two or more values: ``spread`` = the largest relative range of
+    e_mean along it (over every value of the other axis); ``flat`` below `FLAT_AXIS_RTOL`; ``warning`` for a flat axis,
+    naming the saturation when the median ``saturated_fraction`` is above `FLAT_SATURATED`."""
+    e = np.asarray(metrics["e_mean_mm"], dtype=np.float64)
+    sat = float(np.nanmedian(np.asarray(metrics["saturated_fraction"], dtype=np.float64)))
+    doc: dict = {"rule": f"relative range of e_mean along an axis < {FLAT_AXIS_RTOL:g} at every value of the other axis"}
+    for k, (name, values) in enumerate(axes.items()):
+        if np.asarray(values).size < 2:
+            continue
+        along = np.moveaxis(e, k, -1)  # (other axis, this axis)
+        ok = np.all(np.isfinite(along), axis=-1) & (np.min(np.abs(along), axis=-1) > 0)
+        if not ok.any():
+            continue
+        spread = float(np.max(np.ptp(along[ok], axis=-1) / np.min(np.abs(along[ok]), axis=-1)))
+        entry: dict = {"spread": spread, "flat": spread < FLAT_AXIS_RTOL}
+        if entry["flat"]:
+            why = (
+                f"; the drive is saturated on a median {100 * sat:.0f} % of the samples: a loop at its drive limit cannot act on its "
+                "gains (a reachable reference or a higher umax would)"
+                if sat > FLAT_SATURATED
+                else ""
+            )
+            entry["warning"] = (
+                f"e_mean changes by at most {100 * spread:.2g} % along {name} (at every swept value of the other axis): "
+                f"{name} has almost no effect on this loop{why}"
+            )
+        doc[name] = entry
+    doc["median_saturated_fraction"] = sat
+    return doc
+
+
 def sweep_reference_check(plant, reference, settings: dict, axes: Mapping[str, np.ndarray]) -> tuple[dict, str | None]:
     """The reference against the output the plant model reaches (`reference_check`), at the largest swept ``umax``.
 
@@ -306,7 +347,9 @@ def run_sweep(
         raise UserInputError(str(exc)) from None
     m = res.metrics
     range_check = sweep_range_summary(m, settings)
+    flat = sweep_flat_axes(m, {xn: xv, yn: yv})
     warnings = [range_check["warning"]] if range_check.get("warning") else []
+    warnings += [v["warning"] for v in flat.values() if isinstance(v, dict) and v.get("warning")]
     for w in warnings:
         LOGGER.warning(w)
     warnings = [ref_warning, *warnings] if ref_warning else warnings
@@ -323,6 +366,6 @@ def run_sweep(
     best = {k: float(v[order[0]]) for k, v in table.items()}
     atomic_write_json(
         files["metrics.json"],
-        {"best": best, "n_configurations": n, "axes": axes, "settings": settings, "range_check": range_check},
+        {"best": best, "n_configurations": n, "axes": axes, "settings": settings, "range_check": range_check, "flat_axes": flat},
     )
     return ControlSweepResult(dict(m), axes, table, order, best, settings, range_check, warnings, out, files)
