@@ -7,7 +7,6 @@ options and defaults, and says so when its output folder holds earlier results. 
 """
 
 import csv
-import importlib.util
 import sys
 from pathlib import Path
 
@@ -16,9 +15,9 @@ import pytest
 
 import smafl_jax as sj
 
-ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).parent))
-import indep_plant  # noqa: E402
+import indep_plant
+from repo_scripts import load_script
 
 #: The cheapest fit that still has a validation split (the noise ratios need one): a tiny EUPI, initialiser only.
 FAST = ["--model", "eupi", "--no-figures", "--n-sym", "3", "--n-alpha", "0", "--n-asym", "0", "--poly-order", "1"]
@@ -27,10 +26,7 @@ FAST += ["--max-steps", "0", "--memory", "zero", "--orientation", "rises"]
 
 @pytest.fixture(scope="module")
 def fit_folder():
-    spec = importlib.util.spec_from_file_location("fit_folder_script", ROOT / "experiments" / "fit_folder.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("experiments/fit_folder.py", "fit_folder_script")
 
 
 @pytest.fixture(scope="module")

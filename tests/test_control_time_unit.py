@@ -1,23 +1,16 @@
 """Issue 16 experiment (experiments/control_time_unit.py): unit conversions, eq. (8), batching, scoring."""
 
-import importlib.util
-from pathlib import Path
-
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from repo_scripts import load_script
 
 import smafl_jax as sj
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def ctu():
-    spec = importlib.util.spec_from_file_location("control_time_unit", ROOT / "experiments" / "control_time_unit.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("experiments/control_time_unit.py")
 
 
 @pytest.fixture(scope="module")

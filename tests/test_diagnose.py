@@ -1,6 +1,5 @@
 """Issue 6: effect catalogue, residual statistics, blind diagnosis on records with an undeclared effect."""
 
-import importlib.util
 import json
 
 import equinox as eqx
@@ -37,13 +36,9 @@ def truth():
 
 @pytest.fixture(scope="module")
 def drives():
-    from pathlib import Path
+    from repo_scripts import load_script
 
-    path = Path(__file__).resolve().parents[1] / "datasets" / "generate.py"
-    spec = importlib.util.spec_from_file_location("smafl_datasets_generate", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.drives()
+    return load_script("datasets/generate.py", "smafl_datasets_generate").drives()
 
 
 def _u(drives):

@@ -114,16 +114,14 @@ def test_bad_inputs():
 
 def test_diagnose_reports_unexplained_without_changing_the_selection(tmp_path):
     """An extra column no catalogue effect uses moves the output: the key, the figure, the same selection."""
-    import importlib.util
+
+    from repo_scripts import load_script
 
     from smafl_jax.diagnosis import diagnose
     from smafl_jax.effects import ExtendedModel
     from smafl_jax.report import write_diagnosis
 
-    spec = importlib.util.spec_from_file_location("smafl_datasets_generate", ROOT / "datasets" / "generate.py")
-    gen = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(gen)
-    drives = gen.drives()
+    drives = load_script("datasets/generate.py", "smafl_datasets_generate").drives()
     eupi = sj.load_model(ROOT / "datasets" / "truth.json").hysteresis
     u = np.concatenate([np.asarray(drives[k][1], float) for k in ("minor_loop", "main_loop")])
     dt = 0.5
