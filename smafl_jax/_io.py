@@ -109,9 +109,26 @@ def model_to_dict(model: Any) -> dict[str, Any]:
         elif hasattr(val, "shape") and np.size(val) == 0 and np.ndim(val) > 1:
             # an empty (0, k) array would come back from JSON as shape (0,): keep its shape
             out[f.name] = {"shape": list(np.shape(val)), "values": []}
+        elif f.metadata.get("constraint") == "positive" and hasattr(val, "shape"):
+            out[f.name] = to_jsonable(_roundoff_to_zero(np.asarray(val, dtype=np.float64)))
         else:
             out[f.name] = to_jsonable(val)
     return out
+
+
+#: A value of a ``>= 0`` field at most this far below 0 (relative to the field's largest magnitude) is round-off of a
+#: fit that ended on the bound (a diagnosis' base wrote -4.4e-19 among gains of order 1, and then neither
+#: ``smafl simulate`` nor ``smafl sample`` would read its own file): saved and read as 0.
+ROUNDOFF_RTOL = 1e-9
+#: ... or at most this far below 0 whatever the field's scale (all other gains 0: nothing to be relative to).
+ROUNDOFF_ATOL = 1e-12
+
+
+def _roundoff_to_zero(arr: np.ndarray) -> np.ndarray:
+    if arr.size == 0 or not np.all(np.isfinite(arr)):
+        return arr
+    tol = max(ROUNDOFF_RTOL * float(np.max(np.abs(arr))), ROUNDOFF_ATOL)
+    return np.where((arr < 0) & (arr >= -tol), 0.0, arr)
 
 
 #: Positive fields that must be strictly > 0 (rates, tilts, spans and time constants divide or scale by
@@ -163,6 +180,8 @@ def model_from_dict(d: Any, *, where: str = "model") -> Any:
             arr = np.asarray(val, dtype=np.float64)
             if not np.all(np.isfinite(arr)):
                 raise UserInputError(f"{where}.{key}: non-finite value in saved parameters")
+            if f.metadata.get("constraint") == "positive" and f.name not in _NONZERO_FIELDS:
+                arr = _roundoff_to_zero(arr)
             _check_positive_field(f, arr, f"{where}.{key}")
             kwargs[key] = jnp.asarray(arr)
     try:

@@ -2,6 +2,7 @@ import json
 import subprocess
 import sys
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -144,3 +145,25 @@ def test_cli_user_errors_exit_2_without_traceback(tmp_path, datasets_dir):
     )
     assert res.returncode == 2 and "file not found" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "o.csv").exists()
+
+
+def test_a_gain_a_hair_below_zero_is_round_off_saved_and_read_as_zero(tmp_path):
+    """A fit ending on the gains' bound may leave -4e-19 (a new-user trial: a diagnosis' base_fit.json that neither
+    `smafl simulate` nor `smafl sample` would read); a clearly negative gain is still refused."""
+    import dataclasses
+
+    m = sj.Cascade.from_range(7.4, n_sym=3, n_alpha=2, n_asym=2)
+    w = np.asarray(m.hysteresis.w, dtype=np.float64).copy()
+    w.flat[1] = -4.4e-19 * max(1.0, float(np.max(np.abs(w))))
+    tiny = dataclasses.replace(m, hysteresis=dataclasses.replace(m.hysteresis, w=jnp.asarray(w)))
+    sj.save_model(tmp_path / "saved.json", tiny)
+    doc = json.loads((tmp_path / "saved.json").read_text())
+    assert np.min(doc["model"]["hysteresis"]["w"]) >= 0.0  # written as 0
+    doc["model"]["hysteresis"]["w"] = w.tolist()  # a file written before the clip: read as 0 too
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    assert float(np.min(np.asarray(sj.load_model(tmp_path / "old.json").hysteresis.w))) == 0.0
+    w.flat[1] = -1e-3 * max(1.0, float(np.max(np.abs(w))))
+    doc["model"]["hysteresis"]["w"] = w.tolist()
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    with pytest.raises(sj.UserInputError, match=r"model\.hysteresis\.w: must be >= 0"):
+        sj.load_model(tmp_path / "bad.json")
