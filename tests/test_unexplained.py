@@ -93,6 +93,11 @@ def test_white_noise_is_not_predictable():
     assert not left and "no significant structure" in why
     left, why = structure_verdict(["creep"], {"ljung_box": {"p_value": 1e-9}}, None)
     assert left and "after creep" in why and "not white" in why
+    # on thousands of samples a fit at the noise floor fails the whiteness test too: detectable, not structure left
+    left, why = structure_verdict([], {"ljung_box": {"p_value": 1e-40}}, None, heldout_noise_ratio=1.14)
+    assert not left and "detectable but small" in why and "1.14x" in why
+    left, why = structure_verdict([], {"ljung_box": {"p_value": 1e-40}}, None, heldout_noise_ratio=2.5)
+    assert left and "not white" in why
 
 
 def test_bad_inputs():

@@ -1610,6 +1610,7 @@ def diagnose(
             strongest=strongest,
             simulate=simulate_segment,
             min_gain=min_gain,
+            heldout_noise_ratio=noise.get("extended_heldout_ratio"),
         )
         _log(f"unexplained: {result['unexplained']['verdict']}", verbose)
     unwrapped = chosen if selected else base.base

@@ -239,11 +239,24 @@ def generic_correction(
     return summary, arrays
 
 
-def structure_verdict(selected: Sequence[str], whiteness: dict | None, strongest: dict | None, p_threshold: float = 0.01):
+#: A held-out RMSE within this many output-noise SDs leaves nothing large to explain, whatever the whiteness tests say.
+SMALL_STRUCTURE_RATIO = 1.5
+
+
+def structure_verdict(
+    selected: Sequence[str],
+    whiteness: dict | None,
+    strongest: dict | None,
+    p_threshold: float = 0.01,
+    heldout_noise_ratio: float | None = None,
+):
     """Is there significant structure left in the held-out residual?  ``(bool, reason)``.
 
     Structure: the Ljung-Box test rejects whiteness, or the strongest candidate-signal correlation has
-    p < ``p_threshold`` (Bartlett-effective n).
+    p < ``p_threshold`` (Bartlett-effective n), and the held-out RMSE is more than `SMALL_STRUCTURE_RATIO` output-noise
+    SDs (``heldout_noise_ratio``, when known).  Why the size: on thousands of samples any misfit fails the whiteness
+    test; a new-user trial got "structure left" on every record, also on fits at 1.03-1.14x the noise, which a user
+    reads as physics the model lacks.
     """
     lb = (whiteness or {}).get("ljung_box") or {}
     reasons = []
@@ -252,6 +265,11 @@ def structure_verdict(selected: Sequence[str], whiteness: dict | None, strongest
     if strongest and strongest.get("p_value", 1.0) < p_threshold:
         reasons.append(f"it correlates with {strongest['signal']} (corr {strongest['corr']:+.3f}, p {strongest['p_value']:.2g})")
     after = f"after {', '.join(selected)}" if selected else "no catalogue effect selected"
+    if reasons and heldout_noise_ratio is not None and heldout_noise_ratio <= SMALL_STRUCTURE_RATIO:
+        return False, (
+            f"{after}; detectable but small: " + "; ".join(reasons) + f", but the held-out RMSE is {heldout_noise_ratio:.3g}x "
+            f"the output's noise SD (<= {SMALL_STRUCTURE_RATIO:g}x): nothing large is left to explain"
+        )
     if reasons:
         return True, f"{after}; " + "; ".join(reasons)
     return False, f"{after}; no significant structure left (Ljung-Box and candidate-signal correlations at p >= {p_threshold:g})"
@@ -288,14 +306,15 @@ def unexplained_report(
     min_gain: float = 0.05,
     p_threshold: float = 0.01,
     scheme: str = "forward",
+    heldout_noise_ratio: float | None = None,
 ) -> tuple[dict, dict | None]:
     """``diagnosis.json["unexplained"]`` for the selected model ``model`` fitted on ``split.train``.
 
     ``res_*``: its residuals on the (masked) training and held-out samples; ``simulate(model, segment)`` its
     output on a whole segment (the candidate signals and their low-passes run over whole segments, then the
-    scored samples are taken).  Returns ``(doc, arrays)``; arrays is None when no correction could be fitted.
+    scored samples are taken).  ``heldout_noise_ratio``: its held-out RMSE over the output noise (`structure_verdict`).  Returns ``(doc, arrays)``; arrays is None when no correction could be fitted.
     """
-    left, why = structure_verdict(selected, whiteness, strongest, p_threshold)
+    left, why = structure_verdict(selected, whiteness, strongest, p_threshold, heldout_noise_ratio)
     doc = {"structure_left": left, "why": why, "strongest_correlate": strongest}
     dur = max(float(s.time[-1] - s.time[0]) for s in split.train)
     dt = min(float(s.dt) for s in split.train)
