@@ -142,6 +142,12 @@ def run(args):
     print(f"{'parameter':<22}{'mean':>12}{'sd':>12}{'2.5 %':>12}{'97.5 %':>12}{'ESS':>8}")
     for name, s in summary["parameters"].items():
         print(f"{name:<22}{s['mean']:>12.5g}{s['sd']:>12.4g}{s['q025']:>12.5g}{s['q975']:>12.5g}{s['ess']:>8.0f}")
+    if any(".memory[" in name for name in summary["parameters"]):  # a trial user could not read these rows
+        print(
+            "  (hysteresis.memory[i]: operator i's state at t = 0 as a logit of where it starts between its lower and "
+            "upper bound, sigmoid(value); 0 = midway, -4 / +4 = 2 % from the lower / upper bound; a wide interval: the "
+            "record does not pin that operator's start)"
+        )
     for name, s in summary["derived"].items():
         if "mean" in s:
             print(f"{name:<22}{s['mean']:>12.5g}{s['sd']:>12.4g}{s['q025']:>12.5g}{s['q975']:>12.5g}")

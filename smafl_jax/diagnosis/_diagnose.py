@@ -1612,7 +1612,6 @@ def diagnose(
             min_gain=min_gain,
             heldout_noise_ratio=noise.get("extended_heldout_ratio"),
         )
-        _log(f"unexplained: {result['unexplained']['verdict']}", verbose)
     unwrapped = chosen if selected else base.base
     base_all = ext_all = None
     if refit:
