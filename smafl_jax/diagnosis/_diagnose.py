@@ -659,18 +659,28 @@ def refined_base(base, start, split, verbose=False):
     th = thermal_of(start)
     if th is not None and hasattr(th, "lag") and hasattr(start, "thermal"):
         other = 1 - th.lag
+        _log(
+            f"  base refinement: the base with a drive lag of {other} sample(s), then each lag with rule and fitted memory",
+            verbose,
+        )
         s1 = dataclasses.replace(start, thermal=dataclasses.replace(th, lag=other))
         variants.append((other, s1, fit_extended(s1, [], split)[0]))
     runs = []
+    t0 = time.time()
+    n_runs = len(variants) * (2 if len(split.train) == 1 else 1)  # at most: a fitted memory may not be found
+    # a minute or more each on long records: one line per variant, so the phase is never silent for minutes
+    done = lambda label: _log(f"  base refinement: {label} done ({len(runs)}/{n_runs}, {time.time() - t0:.0f} s)", verbose)
     for lag, st, b in variants:
         tag = f"lag {lag}, " if th is not None else ""
         runs.append((tag + "rule", refine_model(b, split), b))
+        done(tag + "rule memory")
         if len(split.train) == 1:
             s = split.train[0]
             fm = fitted_memory_start(st, [(s.u, s.y, s.dt)], [s.mask.astype(float)])
             if fm is not None:
                 b = fit_extended(fm[0], [], split)[0]
                 runs.append((tag + "fitted", refine_model(b, split), b))
+                done(tag + "fitted memory")
     held = {label: _held(m, split)["rmse"] for label, m, _ in runs}
     label, model, profiled = min(runs, key=lambda r: held[r[0]] if np.isfinite(held[r[0]]) else np.inf)
     _log("base refinement: " + ", ".join(f"{k} (held-out RMSE {v:.4g})" for k, v in held.items()) + f" -> {label}", verbose)
