@@ -174,7 +174,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .names import is_voltage
-from .record import DEFAULT_DT_RTOL, Record
+from .record import DEFAULT_DT_RTOL, GAP_STEPS, Record
 
 __all__ = ["Finding", "check_record", "check_records", "ACTIONS"]
 
@@ -871,8 +871,7 @@ def _gap_input(rec: Record, step: float) -> list[Finding]:
     t, u = np.asarray(raw.time, float), np.asarray(raw.u, float)
     rng = robust_range(rec.u)
     d = np.diff(t)
-    # a gap that misses at least one sample; a jittered step (1.2 steps long) hides nothing
-    gap = d >= 1.5 * step
+    gap = d >= GAP_STEPS * step  # a step that misses a sample; a jittered step hides nothing
     if not gap.any() or not math.isfinite(rng) or (~gap).sum() < 10:
         return []
     moves = np.abs(np.diff(u)) > GAP_INPUT_REL * rng

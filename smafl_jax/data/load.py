@@ -71,7 +71,7 @@ import numpy as np
 from smafl_jax._errors import DataError, UserInputError
 
 from .names import is_voltage
-from .record import DEFAULT_DT_RTOL, Record, check_time, interpolated_mask
+from .record import DEFAULT_DT_RTOL, GAP_STEPS, Record, check_time, interpolated_mask
 
 __all__ = [
     "load_record",
@@ -92,8 +92,6 @@ DELIMITERS = (",", ";", "\t")
 _DELIM_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Gaps at least this many sample times long are listed one by one in ``processing``.
 LONG_GAP_STEPS = 10
-#: A step of at least this many sample times misses a sample: a gap that resampling bridges (module docstring).
-GAP_STEPS = 1.5
 #: The default time column; without it, a column named like one of `TIME_NAMES` (unit split off) is the time.
 TIME_COLUMN = "time_s"
 #: Names of a time column once lower-cased and stripped of their unit (English, German, French, Spanish, Italian).

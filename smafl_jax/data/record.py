@@ -27,6 +27,10 @@ DEFAULT_DT_RTOL = 0.15
 #: with fewer digits than the grid's float arithmetic: 0.7 read vs 7 x 0.1 = 0.7000000000000001 on the grid).
 STAMP_RTOL = 1e-6
 
+#: A step of at least this many sample times misses a sample: a gap (what `--resample` bridges, what the noise estimate
+#: on the stamps as read and the ``gap_input`` check leave out or look at); a jittered step of 1.3 misses none.
+GAP_STEPS = 1.5
+
 
 def interpolated_mask(time, gaps, dt: float) -> np.ndarray:
     """True on the samples of ``time`` strictly inside one of the ``gaps`` ``(t_start, t_end)`` (more than

@@ -138,6 +138,7 @@ def noise_floor(outputs, **scored: dict | None) -> dict:
     is quantised so coarsely that the estimate is 0).
     """
     from ..data.checks import noise_scale, noise_scale_on_stamps
+    from ..data.record import GAP_STEPS
 
     if _is_record(outputs) or (isinstance(outputs, (np.ndarray, jax.Array)) and np.ndim(outputs) == 1):
         outputs = [outputs]  # one record or one output array, not a list of them
@@ -148,7 +149,7 @@ def noise_floor(outputs, **scored: dict | None) -> dict:
                 raise ValueError(f"noise_floor: record {item.name!r} has no output")
             if (raw := _as_read_output(item)) is not None:
                 # a step of 1.5 sample times or more misses a sample: the signal moves across it
-                sds.append(noise_scale_on_stamps(*raw, max_step=1.5 * float(item.dt)))
+                sds.append(noise_scale_on_stamps(*raw, max_step=GAP_STEPS * float(item.dt)))
                 n.append(int(np.isfinite(raw[1]).sum()))
                 n_as_read += 1
                 continue
