@@ -823,5 +823,20 @@ def test_refined_base_fits_the_operator_memory_of_an_independent_clean_record():
     base, _ = fit_extended(screened, [], split)
     refined, _, doc = refined_base(base, screened, split)
     held = {k: score(m, split.test)[0]["rmse"] / r["noise_sd"] for k, m in (("rule", base), ("refined", refined))}
-    assert {"lag 0, rule", "lag 0, fitted", "lag 1, rule", "lag 1, fitted"} == set(doc["heldout_rmse"])
+    assert {"lag 0, rule", "lag 0, fitted", "lag 1, rule", "lag 1, fitted"} == set(doc["heldout_rmse"]) == set(doc["train"])
+    assert all(doc["train"][k]["k"] > 0 and np.isfinite(doc["train"][k]["bic"]) for k in doc["train"])
     assert held["refined"] < 1.5 < 3.0 < held["rule"], held
+
+
+def test_refined_parameter_count_counts_thresholds_tilts_and_fitted_memory():
+    """The training BIC that picks the diagnosis base (`refined_base`) counts what the refinement frees: a fitted
+    operator memory costs one parameter per operator, thresholds and tilts theirs."""
+    from smafl_jax.diagnosis._diagnose import ExtendedModel, n_parameters, n_refined_parameters
+
+    h = sj.EUPI.from_range(0.0, 5.0)
+    cascade = sj.Cascade(thermal=sj.JouleThermal(), hysteresis=h)
+    rule = ExtendedModel.of(cascade)
+    fitted = ExtendedModel.of(cascade.with_hysteresis(h.with_fitted_memory(0.0)))
+    grids = sum(np.size(getattr(h, f)) for f in ("r_sym", "r_asym", "alpha"))
+    assert n_refined_parameters(rule) == n_parameters(rule) + grids
+    assert n_refined_parameters(fitted) == n_refined_parameters(rule) + h.n_operators
