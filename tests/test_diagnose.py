@@ -831,7 +831,8 @@ def test_refined_base_fits_the_operator_memory_of_an_independent_clean_record():
 def test_refined_parameter_count_counts_thresholds_tilts_and_fitted_memory():
     """The training BIC that picks the diagnosis base (`refined_base`) counts what the refinement frees: a fitted
     operator memory costs one parameter per operator, thresholds and tilts theirs."""
-    from smafl_jax.diagnosis._diagnose import ExtendedModel, n_parameters, n_refined_parameters
+    from smafl_jax import ExtendedModel
+    from smafl_jax.diagnosis import n_parameters, n_refined_parameters
 
     h = sj.EUPI.from_range(0.0, 5.0)
     cascade = sj.Cascade(thermal=sj.JouleThermal(), hysteresis=h)
