@@ -186,3 +186,45 @@ def test_a_measured_column_read_the_other_way_is_warned_and_can_be_flipped(setup
     assert not any("runs against" in w for w in res.warnings)
     with pytest.raises(sj.UserInputError, match="measured_sign must be 1 or -1"):
         sj.simulate_record(setup["path"], csv, measured_sign=2)
+
+
+def test_a_drive_below_its_range_with_the_thermal_state_inside_is_a_note_not_a_warning(setup, tmp_path):
+    """Short 0 V off phases (a PWM run) leave the raw drive's fitted range, but the thermal lag keeps what the hysteresis
+    sees inside its trained range: said as a note, and the raw check still counts every sample."""
+    u = setup["u"].copy()
+    k = int(np.argmax(u))
+    u[k : k + 6] = 0.0  # 0.3 s off at the hottest point; the thermal time constant is 16 s
+    csv = tmp_path / "pwm_dip.csv"
+    sj.atomic_write_csv(csv, {"time_s": np.arange(u.size) * DT, "voltage_V": u})
+    res = sj.simulate_record(setup["path"], csv)
+    raw, eff = res.range_checks[0], res.range_checks[1]
+    assert raw["n_beyond_tolerance"] == 6 and "warning" not in raw and "warning" not in eff
+    assert "stays inside its trained range" in raw["note"] and "6 below the min" in raw["note"]
+    assert not any("leaves the range" in w for w in res.warnings)
+    assert any("stays inside its trained range" in n for n in res.notes)
+    # held off long enough for the thermal state to leave its range too: both are warnings again
+    u = np.r_[u, np.zeros(1200)]  # 60 s off: the actuator cools below anything its training saw
+    sj.atomic_write_csv(csv, {"time_s": np.arange(u.size) * DT, "voltage_V": u})
+    res = sj.simulate_record(setup["path"], csv)
+    assert "warning" in res.range_checks[0] and "warning" in res.range_checks[1]
+
+
+def test_an_output_read_from_another_zero_is_named_as_an_offset(setup, tmp_path):
+    """A measured column shifted by a constant (a re-zeroed sensor): the warning names the offset and the
+    calibration that removes it; a model off by its noise alone, or by a shape error, gets none."""
+    from smafl_jax.workflows.simulate import output_offset_check
+
+    rec = sj.load_record(setup["csv"])
+    shifted = tmp_path / "rezeroed.csv"
+    sj.atomic_write_csv(shifted, {"time_s": rec.time, "voltage_V": rec.u, "displacement_mm": rec.y - 0.3})
+    res = sj.simulate_record(setup["path"], shifted)
+    w = next(w for w in res.warnings if w.startswith("the error is mostly one constant offset"))
+    assert "reads -0.3" in w and "calibrate START:END calibrate_fit output_offset" in w
+    chk = res.scores["output_offset_check"]
+    assert chk["mean_error"] == pytest.approx(-0.3, abs=0.002) and chk["share_of_mse"] > 0.99
+    assert not any("constant offset" in w for w in sj.simulate_record(setup["path"], setup["csv"]).warnings)
+    t = np.linspace(0.0, 1.0, 500)
+    assert "warning" not in output_offset_check(np.sin(9 * t), np.sin(9 * t) * 0.5, 0.01, "y")  # a shape error
+    assert "warning" not in output_offset_check(t + 0.02, t, 0.01, "y")  # 2 noise SDs: too small to name
+    assert "warning" in output_offset_check(t + 0.06, t, 0.01, "y")
+    assert output_offset_check(t, t, None, "y") == {"rule": chk["rule"], "checked": False}

@@ -252,6 +252,38 @@ def output_sign_check(
     return out
 
 
+#: `output_offset_check` warns when the mean error carries at least this share of the mean squared error ...
+OFFSET_SHARE = 0.75
+#: ... and is at least this many noise SDs.
+OFFSET_NOISE = 5.0
+
+
+def output_offset_check(
+    measured: np.ndarray, simulated: np.ndarray, noise_sd: float | None, column: str, calibrate_option: str = "--calibrate",
+    calibrate_fit_option: str = "--calibrate-fit",
+) -> dict:
+    """Whether the error is mostly one constant offset: the mean of ``measured - simulated``, its share of the mean
+    squared error and the RMSE without it, with a ``warning`` naming the sensor's zero when the offset dominates.  Why: a
+    new-user trial (an independent plant, a length sensor re-zeroed 8.4 mm away between runs) scored a new run at 596x the
+    noise with only small range warnings beside it, which a user would blame; the offset alone took 14.3x of it away."""
+    e = np.asarray(measured, np.float64) - np.asarray(simulated, np.float64)
+    out: dict = {"rule": f"mean error >= {OFFSET_SHARE:g} of the mean squared error and >= {OFFSET_NOISE:g} noise SDs"}
+    if e.size < 3 or noise_sd is None or not np.isfinite(noise_sd) or noise_sd <= 0:
+        return {**out, "checked": False}
+    bias, mse = float(np.mean(e)), float(np.mean(e**2))
+    share = bias**2 / mse if mse > 0 else 0.0
+    rest = float(np.std(e))
+    out.update(checked=True, mean_error=bias, share_of_mse=share, rmse_offset_removed=rest)
+    if share >= OFFSET_SHARE and abs(bias) >= OFFSET_NOISE * noise_sd:
+        out["warning"] = (
+            f"the error is mostly one constant offset: '{column}' reads {bias:+.4g} from the model on average ({100 * share:.0f} % "
+            f"of the mean squared error; without it the RMSE would be {rest:.4g}, {rest / noise_sd:.3g}x the noise): a "
+            f"sensor zeroed elsewhere (a re-zeroed length sensor, a tare) would do this; {calibrate_option} START:END "
+            f"{calibrate_fit_option} output_offset re-anchors the output on a segment of this record"
+        )
+    return out
+
+
 def _out_name(output_name: str | None, data_info: Mapping) -> str:
     """The simulated column's name: ``output_name``, else ``<the fit's output column>_model``."""
     return output_name or f"{data_info.get('output_column') or 'output'}_model"
@@ -547,6 +579,12 @@ def simulate_record(
             scores["output_sign_check"] = sign
             if sign.get("warning"):
                 warn(sign["warning"])
+            elif calibration is None:  # a reversed column is its own finding; a calibration fits the offset already
+                offset = output_offset_check(ym[finite], y[finite], scores["noise"].get("sd"), measured_col,
+                                             o("calibrate"), o("calibrate_fit"))  # fmt: skip
+                scores["output_offset_check"] = offset
+                if offset.get("warning"):
+                    warn(offset["warning"])
         cols[measured_col] = cols_as_read[measured_col]
     if metrics_file is not None and scores is None:  # checked before anything is written
         raise UserInputError(f"{o('metrics_file')} needs a measured output column in the CSV (see {o('measured')})")
