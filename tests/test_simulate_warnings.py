@@ -129,6 +129,8 @@ def test_a_new_record_is_told_which_start_it_gets(setup, tmp_path, capsys):
     # the estimate says the start in volts, not as a bare fraction
     est = next(n for n in sj.simulate_record(setup["path"], setup["csv"], initial_state="estimate").notes if "initial state" in n)
     assert est.startswith("initial state estimate: thermal state at t=0 ") and " V" in est and "thermal 0." not in est
+    # ... and what it compared: an estimate that keeps the start as fitted is not mistaken for one that did nothing
+    assert "(the best of 24 starts, thermal state x operator memory, on the first " in est and "the start as fitted " in est
 
 
 def test_a_measured_column_in_other_units_is_warned(setup, tmp_path):

@@ -119,10 +119,23 @@ def started_as_in_fit(model: Any, row: Mapping) -> Any:
     return model
 
 
-def _start_note(rule: str, start: Mapping) -> str:
-    """``initial state RULE: <thermal start in volts and words>, <operator memory>`` (`with_initial_state`'s info)."""
+def _start_note(rule: str, start: Mapping, dt: float | None = None) -> str:
+    """``initial state RULE: <thermal start in volts and words>, <operator memory>`` (`with_initial_state`'s info); an
+    estimate also says how many starts it compared, over how long, and how the start as fitted did there (a new-user
+    trial read an estimate that kept the fitted start as "estimate did nothing")."""
     parts = [start[k] for k in ("thermal_description", "memory_description") if start.get(k)]
-    return f"initial state {rule}" + (f": {', '.join(parts)}" if parts else "")
+    text = f"initial state {rule}" + (f": {', '.join(parts)}" if parts else "")
+    rows = start.get("candidates") or []
+    if rows and dt:
+        best = min(r["rmse_first"] for r in rows)
+        fitted = next((r["rmse_first"] for r in rows if r["thermal"] == "fit" and r["memory"] == "as fitted"), None)
+        text += (
+            f" (the best of {len(rows)} starts, thermal state x operator memory, on the first "
+            f"{start['window_samples'] * dt:.4g} s: RMSE there {best:.4g}"
+            + (f", the start as fitted {fitted:.4g}" if fitted is not None else "")
+            + ")"
+        )
+    return text
 
 
 def _is_training_record(doc: Mapping, rec) -> bool:
@@ -443,7 +456,7 @@ def simulate_record(
             y_meas, n_filled = _bridged(y_meas)
             note(f"estimating the start: {n_filled} blank/NaN cell(s) of '{measured_col}' bridged by linear interpolation")
         model, start = with_initial_state(model, initial_state, rec.u, y_meas, rec.dt)
-        note(_start_note(initial_state, start))
+        note(_start_note(initial_state, start, rec.dt))
     elif (own := training_record_start(doc, rec)) is not None:
         # a training record of a joint fit: its own fitted start, not the shared rule the saved model carries
         model = started_as_in_fit(model, own)
