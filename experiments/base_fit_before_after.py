@@ -76,6 +76,12 @@ for seed in seeds:
             n=len(rec),
             train=float(np.sqrt(np.mean(e[:h0] ** 2)) / sd),
             held=float(np.sqrt(np.mean(e[h0:] ** 2)) / sd),
+            # the fit's own validation block (the last part of the 70 %), what `--model auto` chooses on
+            val=(doc["metrics"].get("validation") or {}).get("rmse", np.nan) / sd,
+            candidates={  # --model auto: each candidate's validation RMSE over the noise SD
+                c["structure"]: (c["validation"] or {}).get("rmse", np.nan) / sd
+                for c in (doc["settings"].get("structure_choice") or {}).get("candidates", [])
+            },
             seconds=sec,
             chosen=(doc["settings"].get("structure_choice") or {}).get("chosen", doc["settings"].get("structure")),
             k1_true=r["truth"]["thermal"]["k1"],

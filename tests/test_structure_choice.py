@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import smafl_jax as sj
-from smafl_jax.identify import auto_candidates
+from smafl_jax.identify import SPARSE_SUFFIX, auto_candidates, candidate_model
 from smafl_jax.models import thermal_of
 from smafl_jax.report import HYSTERESIS, fit_record
 
@@ -38,8 +38,14 @@ def test_auto_candidates_follow_the_input(tmp_path):
     volt = dataclasses.replace(rec, u=rec.u - rec.u.min(), input_name="voltage_V")
     # a drive voltage: every registered class behind the Joule thermal lag, the paper's EUPI cascade first
     names, why = auto_candidates(volt)
-    assert names == ("cascade", *(f"cascade-{k}" for k in HYSTERESIS if k != "eupi")) and len(names) >= 2
-    assert "behind the lag" in why
+    others = tuple(f"cascade-{k}" for k in HYSTERESIS if k != "eupi")
+    # ... and the default EUPI on its sparse grid as well (session 43), unless the user set the grid
+    assert names == ("cascade", f"cascade{SPARSE_SUFFIX}", *others) and "sparse grid" in why and "behind the lag" in why
+    assert candidate_model(names[1]) == ("cascade", {"grid": dict(sj.EUPI.SPARSE_GRID)})
+    assert candidate_model("cascade-preisach") == ("cascade-preisach", {})
+    assert auto_candidates(volt, dict(sj.EUPI.DEFAULT_GRID, poly_order=2))[0] == names  # the polynomial is not the grid
+    assert auto_candidates(volt, SMALL)[0] == ("cascade", *others)
+    assert auto_candidates(rec, None)[0] == auto_candidates(rec, SMALL)[0]  # a direct input: no sparse companion
 
 
 def test_model_auto_keeps_the_class_with_the_lower_validation_rmse(tmp_path, capsys):
@@ -135,3 +141,29 @@ def test_model_auto_refits_only_the_kept_structure(tmp_path, monkeypatch):
     alone, doc1, _ = fit_record(rec, model=choice["chosen"], thresholds=True, tilts=True, **pinned)
     assert sj.model_to_dict(model) == sj.model_to_dict(alone)
     assert doc1["metrics"]["validation"] == doc["metrics"]["validation"]
+
+
+def test_model_auto_fits_the_default_class_on_its_sparse_grid_as_one_more_candidate(datasets_dir):
+    """The wiring of the sparse companion (fits stubbed): it is fitted as the default class with the sparse grid, the
+    user's polynomial order and trained thresholds / tilts, and kept when its validation RMSE is the lowest."""
+    from smafl_jax.report import choose_structure
+    from smafl_jax.report._report_fit import Candidate  # private: a stub candidate for the chooser
+
+    rec = sj.load_record(datasets_dir / "steps.csv")
+    truth = sj.load_model(datasets_dir / "truth.json")
+    calls, val = [], {"auto": 2.0, "cascade": 1.0}  # the sparse companion fits "cascade" by name
+
+    def fit_one(name, opts):
+        calls.append((name, opts))
+        rmse = val.get(name, 3.0)
+        doc = {"settings": {"structure": name, "grid": opts.get("grid")}, "notes": [], "metrics": {}}
+        mets = {"train": {"rmse": rmse}, "validation": {"rmse": rmse, "e_r_percent": 1.0}}
+        return Candidate(truth, mets, None, lambda: (truth, doc, None))
+
+    _, doc, _ = choose_structure(rec, fit_one, {"grid": {**sj.EUPI.DEFAULT_GRID, "poly_order": 2}}, progress=False)
+    sparse = next(opts for name, opts in calls if name == "cascade")
+    assert sparse["grid"] == {**sj.EUPI.SPARSE_GRID, "poly_order": 2} and sparse["thresholds"] and sparse["tilts"]
+    assert sorted(n for n, _ in calls) == sorted(["auto", "cascade", *(f"cascade-{k}" for k in HYSTERESIS if k != "eupi")])
+    choice = doc["settings"]["structure_choice"]
+    assert choice["chosen"] == f"cascade{SPARSE_SUFFIX}" and doc["settings"]["grid"]["n_sym"] == sj.EUPI.SPARSE_GRID["n_sym"]
+    assert f"-> cascade{SPARSE_SUFFIX} (lowest validation RMSE" in doc["notes"][0]

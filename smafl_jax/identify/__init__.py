@@ -26,9 +26,11 @@ from ._baselines import (
 )
 from ._choose import (
     COLD_FRACTION,
+    SPARSE_SUFFIX,
     START_FRACTIONS,
     auto_candidates,
     auto_structure,
+    candidate_model,
     fitted_memory_start,
     refine_thermal_start,
     screen_start,
@@ -81,6 +83,8 @@ __all__ = [
     "STALL_MIN_GAIN",
     "auto_candidates",
     "auto_structure",
+    "candidate_model",
+    "SPARSE_SUFFIX",
     "screen_start",
     "shared_screening",
     "refine_thermal_start",

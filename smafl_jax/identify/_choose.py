@@ -42,6 +42,8 @@ from ._fit import _as_weights, as_fit_data, fit
 __all__ = [
     "auto_structure",
     "auto_candidates",
+    "candidate_model",
+    "SPARSE_SUFFIX",
     "screen_start",
     "shared_screening",
     "rule_inits",
@@ -199,7 +201,29 @@ def auto_structure(record):
     )
 
 
-def auto_candidates(record):
+#: Label suffix of ``--model auto``'s sparse companion of the default EUPI cascade (`EUPI.SPARSE_GRID`).
+SPARSE_SUFFIX = " (sparse grid)"
+
+
+def candidate_model(label: str) -> tuple[str, dict]:
+    """``(model name, fit options)`` of an `auto_candidates` label: the name itself with no options, or for the sparse
+    companion the default class with ``grid`` = `EUPI.SPARSE_GRID` (the caller keeps its polynomial order)."""
+    from ..models._eupi import EUPI
+
+    if label.endswith(SPARSE_SUFFIX):
+        return label[: -len(SPARSE_SUFFIX)], {"grid": dict(EUPI.SPARSE_GRID)}
+    return label, {}
+
+
+def _default_grid(grid) -> bool:
+    """Whether the user's ``grid`` options (None, or a dict of n_sym / n_alpha / n_asym / poly_order) leave the EUPI
+    operator grid at its default, so that ``--model auto`` may compare the sparse grid too."""
+    from ..models._eupi import EUPI
+
+    return all((grid or {}).get(k, v) == v for k, v in EUPI.DEFAULT_GRID.items())
+
+
+def auto_candidates(record, grid=None):
     """``(structures, reason)``: the structures ``--model auto`` fits to this record; several are compared on held-out error.
 
     Every registered hysteresis class (`smafl_jax._choices.HYSTERESIS`, EUPI first) is fitted: which class carries to
@@ -216,8 +240,14 @@ def auto_candidates(record):
     structure, why = auto_structure(record)
     if structure not in HYSTERESIS:  # the cascade: every other class behind the same thermal lag
         others = tuple(m for m in MODELS if m.startswith(f"{structure}-"))  # `smafl fit --model cascade-NAME`
-        return (structure, *others), why + (
-            "; each registered hysteresis class behind the lag is fitted and the held-out error chooses" if others else ""
+        # the default EUPI on its sparse grid too, unless the user set the grid (measured on this drive only: session 43)
+        sparse = (f"{structure}{SPARSE_SUFFIX}",) if _default_grid(grid) else ()
+        return (structure, *sparse, *others), why + (
+            "; each registered hysteresis class behind the lag is fitted"
+            + (" (EUPI on its default and its sparse grid)" if sparse else "")
+            + " and the held-out error chooses"
+            if others or sparse
+            else ""
         )
     others = tuple(k for k in HYSTERESIS if k != structure)
     return (structure, *others), why + "; every registered hysteresis class is fitted and the held-out error chooses"

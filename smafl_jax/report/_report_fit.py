@@ -27,6 +27,7 @@ from ..identify._choose import (
     NEGATIVE_DRIVE_TOLERANCE,
     auto_candidates,
     auto_structure,
+    candidate_model,
     drives_joule_heating,
     fitted_memory_start,
     negative_drive_excess,
@@ -249,7 +250,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     (`shared_screening`).  Measured on the benchmark record (2 cores, quiet): 135.8 s one after another, 89.8 s on 2
     threads (the session-23 code 139.8 s).  Each candidate's ``seconds`` is its own wall time, which overlaps the others'.
     """
-    candidates, why = auto_candidates(record)
+    candidates, why = auto_candidates(record, options.get("grid"))
     drive = candidates[0] not in HYSTERESIS  # a drive voltage: the default cascade first, as `fit_one("auto")` fits it
     more = dict(options)
     for k in ("thresholds", "tilts"):  # auto's defaults for the other classes: trained (a class without them ignores them)
@@ -258,7 +259,12 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     def job(i, name):
         with tagged(name):
             t0 = time.perf_counter()
-            got = fit_one("auto", options) if drive and i == 0 else fit_one(name, more)
+            if drive and i == 0:
+                got = fit_one("auto", options)
+            else:  # a class by name, or the default class on its sparse grid (the user's polynomial order kept)
+                model, extra = candidate_model(name)
+                grid = {**(more.get("grid") or {}), **extra.get("grid", {})}
+                got = fit_one(model, {**more, **({"grid": grid} if grid else {})})
             sec = time.perf_counter() - t0
         say(f"model auto: {name} fitted in {sec:.0f} s", progress)
         return got, sec
@@ -411,7 +417,8 @@ def _submit_longest_first(pool, job, names, first=0):
     names = tuple(names)
 
     def joint(i):
-        h = names[i].removeprefix("cascade-")
+        model = candidate_model(names[i])[0]
+        h = "eupi" if model == "cascade" else model.removeprefix("cascade-")
         return (i == 0 and first == 0) or (h in HYSTERESIS and hysteresis_class(h).refine_jointly)
 
     order = sorted(range(len(names)), key=lambda i: not joint(i))  # stable: registry order within each group

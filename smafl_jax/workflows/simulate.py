@@ -272,7 +272,11 @@ OFFSET_NOISE = 5.0
 
 
 def output_offset_check(
-    measured: np.ndarray, simulated: np.ndarray, noise_sd: float | None, column: str, calibrate_option: str = "--calibrate",
+    measured: np.ndarray,
+    simulated: np.ndarray,
+    noise_sd: float | None,
+    column: str,
+    calibrate_option: str = "--calibrate",
     calibrate_fit_option: str = "--calibrate-fit",
 ) -> dict:
     """Whether the error is mostly one constant offset: the mean of ``measured - simulated``, its share of the mean
