@@ -39,13 +39,15 @@ def test_auto_candidates_follow_the_input(tmp_path):
     # a drive voltage: every registered class behind the Joule thermal lag, the paper's EUPI cascade first
     names, why = auto_candidates(volt)
     others = tuple(f"cascade-{k}" for k in HYSTERESIS if k != "eupi")
-    # ... and the default EUPI on its sparse grid as well (session 43), unless the user set the grid
+    assert names == ("cascade", *others) and "behind the lag" in why and "sparse" not in why
+    # --sparse-grid: the default EUPI on its sparse grid as well (session 43), unless the user set the grid
+    names, why = auto_candidates(volt, None, sparse=True)
     assert names == ("cascade", f"cascade{SPARSE_SUFFIX}", *others) and "sparse grid" in why and "behind the lag" in why
     assert candidate_model(names[1]) == ("cascade", {"grid": dict(sj.EUPI.SPARSE_GRID)})
     assert candidate_model("cascade-preisach") == ("cascade-preisach", {})
-    assert auto_candidates(volt, dict(sj.EUPI.DEFAULT_GRID, poly_order=2))[0] == names  # the polynomial is not the grid
-    assert auto_candidates(volt, SMALL)[0] == ("cascade", *others)
-    assert auto_candidates(rec, None)[0] == auto_candidates(rec, SMALL)[0]  # a direct input: no sparse companion
+    assert auto_candidates(volt, dict(sj.EUPI.DEFAULT_GRID, poly_order=2), True)[0] == names  # the polynomial is not the grid
+    assert auto_candidates(volt, SMALL, True)[0] == ("cascade", *others)
+    assert auto_candidates(rec, None, True)[0] == auto_candidates(rec, SMALL)[0]  # a direct input: no sparse companion
 
 
 def test_model_auto_keeps_the_class_with_the_lower_validation_rmse(tmp_path, capsys):
@@ -143,8 +145,8 @@ def test_model_auto_refits_only_the_kept_structure(tmp_path, monkeypatch):
     assert doc1["metrics"]["validation"] == doc["metrics"]["validation"]
 
 
-def test_model_auto_fits_the_default_class_on_its_sparse_grid_as_one_more_candidate(datasets_dir):
-    """The wiring of the sparse companion (fits stubbed): it is fitted as the default class with the sparse grid, the
+def test_sparse_grid_fits_the_default_class_on_its_sparse_grid_as_one_more_candidate(datasets_dir):
+    """``--sparse-grid`` wiring (fits stubbed): the companion is fitted as the default class with the sparse grid, the
     user's polynomial order and trained thresholds / tilts, and kept when its validation RMSE is the lowest."""
     from smafl_jax.report import choose_structure
     from smafl_jax.report._report_fit import Candidate  # private: a stub candidate for the chooser
@@ -160,10 +162,20 @@ def test_model_auto_fits_the_default_class_on_its_sparse_grid_as_one_more_candid
         mets = {"train": {"rmse": rmse}, "validation": {"rmse": rmse, "e_r_percent": 1.0}}
         return Candidate(truth, mets, None, lambda: (truth, doc, None))
 
-    _, doc, _ = choose_structure(rec, fit_one, {"grid": {**sj.EUPI.DEFAULT_GRID, "poly_order": 2}}, progress=False)
+    _, doc, _ = choose_structure(rec, fit_one, {"grid": {**sj.EUPI.DEFAULT_GRID, "poly_order": 2}}, False, sparse=True)
     sparse = next(opts for name, opts in calls if name == "cascade")
     assert sparse["grid"] == {**sj.EUPI.SPARSE_GRID, "poly_order": 2} and sparse["thresholds"] and sparse["tilts"]
     assert sorted(n for n, _ in calls) == sorted(["auto", "cascade", *(f"cascade-{k}" for k in HYSTERESIS if k != "eupi")])
     choice = doc["settings"]["structure_choice"]
     assert choice["chosen"] == f"cascade{SPARSE_SUFFIX}" and doc["settings"]["grid"]["n_sym"] == sj.EUPI.SPARSE_GRID["n_sym"]
     assert f"-> cascade{SPARSE_SUFFIX} (lowest validation RMSE" in doc["notes"][0]
+
+
+def test_sparse_grid_flag_reaches_the_fit_options():
+    """`smafl fit --sparse-grid` (and experiments/fit_folder.py, which parses the same flags) passes ``sparse_grid``."""
+    from smafl_jax.cli import build_parser
+    from smafl_jax.cli.fit import record_fit_options
+
+    parse = build_parser("fit").parse_args
+    assert record_fit_options(parse(["fit", "x.csv", "--sparse-grid"]), progress=False)["sparse_grid"] is True
+    assert record_fit_options(parse(["fit", "x.csv"]), progress=False)["sparse_grid"] is False

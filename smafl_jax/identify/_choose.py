@@ -223,7 +223,7 @@ def _default_grid(grid) -> bool:
     return all((grid or {}).get(k, v) == v for k, v in EUPI.DEFAULT_GRID.items())
 
 
-def auto_candidates(record, grid=None):
+def auto_candidates(record, grid=None, sparse=False):
     """``(structures, reason)``: the structures ``--model auto`` fits to this record; several are compared on held-out error.
 
     Every registered hysteresis class (`smafl_jax._choices.HYSTERESIS`, EUPI first) is fitted: which class carries to
@@ -234,14 +234,19 @@ def auto_candidates(record, grid=None):
     cascade held out 4.9x the noise where the EUPI cascade held out 10.3x, and 18.7x where it held out 15.7x).  The
     Gaussian-density Preisach (``cascade-preisach-gauss``, session 22) joined as a third class: on 24 fresh plant-B
     records the held-out geometric mean went 9.75x -> 7.08x the noise (4 records worse), plant-A records unchanged.
+
+    ``sparse`` (``smafl fit --sparse-grid``, off by default): the default EUPI cascade on `EUPI.SPARSE_GRID` as one more
+    candidate.  Measured (session 43): on issue 18's 30-record matrix (plant A) the held-out geometric mean went 2.67x
+    -> 2.11x the noise, but on the independent plant C it made an excursion record 10x worse (63x -> 616x: few
+    operators with large cancelling gains extrapolate steeply) and a step record 2x worse, so it is not the default.
     """
     from .._choices import HYSTERESIS, MODELS
 
     structure, why = auto_structure(record)
     if structure not in HYSTERESIS:  # the cascade: every other class behind the same thermal lag
         others = tuple(m for m in MODELS if m.startswith(f"{structure}-"))  # `smafl fit --model cascade-NAME`
-        # the default EUPI on its sparse grid too, unless the user set the grid (measured on this drive only: session 43)
-        sparse = (f"{structure}{SPARSE_SUFFIX}",) if _default_grid(grid) else ()
+        # ``sparse``: the default EUPI on its sparse grid too, unless the user set the grid (opt-in; session 43)
+        sparse = (f"{structure}{SPARSE_SUFFIX}",) if sparse and _default_grid(grid) else ()
         return (structure, *sparse, *others), why + (
             "; each registered hysteresis class behind the lag is fitted"
             + (" (EUPI on its default and its sparse grid)" if sparse else "")

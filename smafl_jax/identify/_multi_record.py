@@ -442,6 +442,7 @@ def fit_records(
     from ..report._report_fit import Candidate, choose_structure
 
     records = [records] if hasattr(records, "u") else list(records)
+    sparse = bool(fit_record_kwargs.pop("sparse_grid", False))
     if model != "auto" or len(records) < 2 or fit_record_kwargs.get("split", "auto") == "none":
         # nothing to compare classes on without leave-one-record-out: "auto" is then `auto_structure`'s class
         return _fit_records_structure(records, model=model, progress=progress, **fit_record_kwargs)
@@ -452,6 +453,7 @@ def fit_records(
         fit_record_kwargs,
         progress,
         validation="leave-one-record-out mean",
+        sparse=sparse,
     )
 
 

@@ -121,8 +121,8 @@ class EUPI(AbstractHysteresis):
     RULE_INITS = ("descended", "zero", "from_top")
     #: Operator grid of `from_range` (the ``smafl fit --n-sym / --n-alpha / --n-asym`` defaults): 8 + 4 x 4 operators.
     DEFAULT_GRID = MappingProxyType({"n_sym": 8, "n_alpha": 4, "n_asym": 4})
-    #: The sparse grid ``--model auto`` also fits behind a drive's thermal lag (8 operators instead of 24), the held-out
-    #: error choosing between them (`smafl_jax.identify.auto_candidates`).  Why: with trained thresholds and tilts the
+    #: The sparse grid ``smafl fit --sparse-grid`` adds to ``--model auto``'s candidates behind a drive's thermal lag
+    #: (8 operators instead of 24; `smafl_jax.identify.auto_candidates`).  Why: with trained thresholds and tilts the
     #: default grid can fit a record's first 70 % at the noise and miss the rest at 11-14x, two gain solutions the training
     #: part cannot tell apart (session 35); the sparse grid alone held out worse as often as better (30 independent
     #: records, geometric mean 2.49x vs 2.47x the noise), the lower validation RMSE of the two 2.04x (session 43).

@@ -169,13 +169,14 @@ def fit_record(record, *, model="auto", progress=False, **options):
     ("auto", "branch", "time", "none"), ``val_fraction`` (0.3), ``solver`` ("lm", one of `smafl_jax.SOLVERS`),
     ``max_steps`` (300), ``thresholds`` / ``tilts`` (None), ``grid`` (dict of ``n_sym``, ``n_alpha``, ``n_asym``,
     ``poly_order``), ``orientation``, ``thermal_start``, ``sees``, ``memory`` (all "auto"), ``refit`` (True; the
-    flag is ``--no-refit``), ``gain_prior`` (1.0, None for plain least squares), ``early_stopping`` and ``median``
-    (False).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
+    flag is ``--no-refit``), ``gain_prior`` (1.0, None for plain least squares), ``early_stopping``, ``median`` and
+    ``sparse_grid`` (False).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
     a model as given, without the screening or the split.
     """
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
     median = bool(options.pop("median", False))
+    sparse = bool(options.pop("sparse_grid", False))
     if median and (model != "auto" or options.get("split") == "none"):
         raise UserInputError(
             "median combines the classes --model auto compares on a validation split: use model auto, split not none"
@@ -188,6 +189,7 @@ def fit_record(record, *, model="auto", progress=False, **options):
         options,
         progress,
         median=median,
+        sparse=sparse,
     )
 
 
@@ -230,9 +232,10 @@ def _median_doc(record, runs, kept, final, doc, extra, progress, refitted=None):
     }
 
 
-def choose_structure(record, fit_one, options, progress, validation="validation", median=False):
+def choose_structure(record, fit_one, options, progress, validation="validation", median=False, sparse=False):
     """``--model auto``: fit every structure of `auto_candidates` with ``fit_one(name, options) -> Candidate`` and keep
-    the lowest validation RMSE (``Candidate.metrics["validation"]``); returns the winner's ``finish()``, ``(model, doc,
+    the lowest validation RMSE (``Candidate.metrics["validation"]``; ``sparse``: the default EUPI on its sparse grid
+    too, `auto_candidates`); returns the winner's ``finish()``, ``(model, doc,
     extra)``, with ``settings.structure_choice`` (each candidate's validation RMSE and e_r, train RMSE, validation
     coverage, seconds) and a first note.  Only the winner is finished (for one record: refitted on the whole record).
     When every candidate's validation coverage (samples on branches its training part visits) is below `COVERAGE_WARN`,
@@ -250,7 +253,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     (`shared_screening`).  Measured on the benchmark record (2 cores, quiet): 135.8 s one after another, 89.8 s on 2
     threads (the session-23 code 139.8 s).  Each candidate's ``seconds`` is its own wall time, which overlaps the others'.
     """
-    candidates, why = auto_candidates(record, options.get("grid"))
+    candidates, why = auto_candidates(record, options.get("grid"), sparse)
     drive = candidates[0] not in HYSTERESIS  # a drive voltage: the default cascade first, as `fit_one("auto")` fits it
     more = dict(options)
     for k in ("thresholds", "tilts"):  # auto's defaults for the other classes: trained (a class without them ignores them)
