@@ -420,9 +420,10 @@ def _submit_longest_first(pool, job, names, first=0):
     names = tuple(names)
 
     def joint(i):
-        model = candidate_model(names[i])[0]
-        h = "eupi" if model == "cascade" else model.removeprefix("cascade-")
-        return (i == 0 and first == 0) or (h in HYSTERESIS and hysteresis_class(h).refine_jointly)
+        model = candidate_model(names[i])[0]  # the sparse companion refines as the default class it is
+        h = model.removeprefix("cascade-")
+        default = first == 0 and model == candidate_model(names[0])[0]
+        return default or (h in HYSTERESIS and hysteresis_class(h).refine_jointly)
 
     order = sorted(range(len(names)), key=lambda i: not joint(i))  # stable: registry order within each group
     futures = {i: pool.submit(job, first + i, names[i]) for i in order}
