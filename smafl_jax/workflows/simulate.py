@@ -282,7 +282,7 @@ def output_offset_check(
     """Whether the error is mostly one constant offset: the mean of ``measured - simulated``, its share of the mean
     squared error and the RMSE without it, with a ``warning`` naming the sensor's zero when the offset dominates.  Why: a
     new-user trial (an independent plant, a length sensor re-zeroed 8.4 mm away between runs) scored a new run at 596x the
-    noise with only small range warnings beside it, which a user would blame; the offset alone took 14.3x of it away."""
+    noise with only small range warnings beside it, which a user would blame; without the offset 13.3x was left."""
     e = np.asarray(measured, np.float64) - np.asarray(simulated, np.float64)
     out: dict = {"rule": f"mean error >= {OFFSET_SHARE:g} of the mean squared error and >= {OFFSET_NOISE:g} noise SDs"}
     if e.size < 3 or noise_sd is None or not np.isfinite(noise_sd) or noise_sd <= 0:
