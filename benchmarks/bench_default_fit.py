@@ -10,10 +10,11 @@ Ratio = ours seconds / profiled-only seconds.  Other 30 000-sample records: ``--
 (the duration follows from the rate), one process per record so each pays its own compilation.
 
     python -m benchmarks.bench_default_fit [--quick] [--drive pwm|multisine|staircase|steps|chirp|triangle] [--rate HZ]
-        [--threads N]
+        [--threads N] [--solver lm|varpro|...]
 
 ``--threads N``: at most N of ``--model auto``'s candidate classes at once (default: one per core); ``--threads 1``
-in another process is the one-after-another baseline of the threaded fit.
+in another process is the one-after-another baseline of the threaded fit.  ``--solver S``: the default fit with another
+joint-refinement solver (`smafl fit --solver`); run once with each in separate processes for the ratio.
 
 JIT compilation is always paid here: `fit_record` does not turn on the on-disk cache of compiled programs that the
 `smafl` command line uses (`SMAFL_COMPILE_CACHE`; session 26: the CLI on this record 96.6 s with an empty cache, 64.2 s
@@ -37,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RATIO_MEANING = "default fit seconds / profiled-start-only seconds (what the joint refinement costs)"
 
 
-def run(quick=False, drive="pwm", rate_hz=25, threads=None):
+def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None):
     sys.path.insert(0, str(ROOT / "tests"))
     import indep_plant
 
@@ -58,7 +59,8 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None):
         indep_plant.write_csv(path, r)
         rec = sj.load_record(path)
         seconds = {}
-        for label, opts in (("default", {}), ("profiled only", {"max_steps": 0})):
+        default = {} if solver is None else {"solver": solver}
+        for label, opts in (("default", default), ("profiled only", {"max_steps": 0})):
             progress(f"default_fit: {label} on {len(rec)} samples")
             t0 = time.perf_counter()
             _, doc, _ = fit_record(rec, **opts)
@@ -67,7 +69,8 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None):
     return [
         row(
             f"default smafl fit, {len(rec)} samples (goal < 60 s)"
-            + (f", at most {threads} candidate threads" if threads else ""),
+            + (f", at most {threads} candidate threads" if threads else "")
+            + (f", solver {solver}" if solver else ""),
             seconds["default"],
             seconds["profiled only"],
             "s",
@@ -85,6 +88,7 @@ if __name__ == "__main__":
     ap.add_argument("--drive", default="pwm")
     ap.add_argument("--rate", type=float, default=25.0)
     ap.add_argument("--threads", type=int, default=None)
+    ap.add_argument("--solver", default=None)
     a = ap.parse_args()
-    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate, threads=a.threads):
+    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate, threads=a.threads, solver=a.solver):
         print(r_)

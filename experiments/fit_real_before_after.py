@@ -3,6 +3,8 @@
     python experiments/fit_real_before_after.py CODE_ROOT OUT.json [DATA_DIR]
     python experiments/fit_real_before_after.py --table OLD.json NEW.json
 
+SMAFL_FIT_OPTS='{"solver": "varpro"}' (JSON) passes keyword options to `fit_record`, to compare settings of one tree.
+
 CODE_ROOT is the checkout whose smafl_jax is imported (an older commit: `git archive COMMIT | tar -x -C /tmp/old`),
 so two versions fit the same records side by side.  Every record: the default split (time or branch), the held-out
 (validation) RMSE and e_r of the model fitted on the training part, the saved model's orientation and the seconds.
@@ -10,6 +12,7 @@ The real records are read in place (../shared/data/real/, never copied into the 
 """
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -41,11 +44,12 @@ sys.path.insert(0, str(Path(root).resolve()))
 import smafl_jax as sj  # noqa: E402
 from smafl_jax.report import fit_record  # noqa: E402
 
+OPTS = json.loads(os.environ.get("SMAFL_FIT_OPTS", "{}"))  # keyword options of fit_record, e.g. '{"solver": "varpro"}'
 rows = []
 for name, kw in JOBS:
     rec = sj.load_record(data / name, **kw)
     t0 = time.time()
-    model, doc, _ = fit_record(rec)
+    model, doc, _ = fit_record(rec, **OPTS)
     v = doc["metrics"]["validation"]
     hy = getattr(model, "hysteresis", model)
     rows.append(

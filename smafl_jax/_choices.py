@@ -4,8 +4,9 @@
 import JAX first (seconds), which `--help` should not pay.
 """
 
-#: Joint-refinement solvers of `smafl_jax.fit`.
-SOLVERS = ("lm", "gauss_newton", "bfgs", "lbfgsb", "projected_gradient")
+#: Joint-refinement solvers of `smafl_jax.fit`; "varpro": LM over the nonlinear parameters with the gains solved exactly
+#: at every point (`smafl_jax.identify._varpro_refine`).
+SOLVERS = ("lm", "gauss_newton", "bfgs", "lbfgsb", "projected_gradient", "varpro")
 #: Registry of the hysteresis models (`smafl_jax.models._hysteresis.AbstractHysteresis`): CLI name -> "module:class".
 #: A new hysteresis model is one class in one module plus one line here (`smafl fit --model NAME`).
 HYSTERESIS = {

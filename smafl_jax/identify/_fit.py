@@ -55,6 +55,7 @@ from . import varpro
 from ._gain_prior import check_gain_prior, map_gains
 from ._metrics import NOISE_FLOOR_WARN, noise_floor
 from ._stall import STALL_MIN_GAIN, STALL_WINDOW, StallStop
+from ._varpro_refine import refine_projected
 from .varpro import FIT_SOLVE
 
 __all__ = ["FitResult", "fit", "fit_many", "init_linear", "init_profile", "default_trainable", "as_fit_data", "SOLVERS"]
@@ -557,9 +558,32 @@ def _finite_tree(tree):
     return all(bool(np.all(np.isfinite(np.asarray(x)))) for x in jax.tree_util.tree_leaves(tree) if eqx.is_array(x))
 
 
+def _bvls_gains(model, part, args):
+    """``(model with its bounded least-squares gains, loss, gains)`` on the fit's weighted records ``args``."""
+    feats, nonneg, setw = part
+    data = [(np.asarray(u), np.asarray(y), d) for u, y, d, _ in args]
+    weights = [np.asarray(w) for *_, w in args]
+    blocks = [_features(feats, record_model(model, i), jnp.asarray(u), jnp.asarray(d)) for i, (u, _, d) in enumerate(data)]
+    sol = varpro.solve_gains(*_stack_rows(blocks, data, weights), nonneg, FIT_SOLVE)
+    if sol is None:
+        return model, np.inf, None
+    model = setw(model, jnp.asarray(sol.x))
+    r = np.asarray(_residuals_jit(model, args))
+    return model, 0.5 * float(r @ r), np.asarray(sol.x)
+
+
 def _refine(model, spec, args, solver, max_steps, rtol, atol, stall=True):
     """Joint refinement; returns ``(model, loss, n_steps, ok, stalled)``."""
     stalled = False
+    part = _linear_part(model) if solver == "varpro" else None
+    if part is not None and hysteresis_of(model) is not None:
+        gains = lambda m: _bvls_gains(m, part, args)
+        fitted, loss, n, ok = refine_projected(
+            model, spec, args, gains, part[0], max_steps=max_steps, rtol=rtol, atol=atol, stall=stall
+        )
+        return fitted, float(loss), int(n), bool(ok), False
+    if solver == "varpro":  # no operator gains to project out (a Joule lag, a model not linear in its weights): plain LM
+        solver = "lm"
     if solver in ("lm", "gauss_newton", "bfgs"):
         raw_train, static = eqx.partition(unconstrain(model), spec)
         solver_ = _make_optx_solver(solver, rtol, atol, stall)
