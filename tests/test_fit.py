@@ -316,3 +316,17 @@ def test_fit_says_when_it_would_run_on_an_accelerator(monkeypatch):
     assert _accelerator_note() is None  # the suite runs on the CPU
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
     assert "JAX_PLATFORMS=cpu" in _accelerator_note()
+
+
+def test_cli_fit_names_the_class_whose_refinement_did_not_converge(tmp_path, datasets_dir, capsys):
+    """A refinement stopped by --max-steps is a warning that names the fitted class (with --model auto several are
+    refined; a new-user trial read the kept one's message as a failure of the whole fit)."""
+    r = sj.load_record(datasets_dir / "minor_loop.csv")
+    data = tmp_path / "short.csv"
+    sj.atomic_write_csv(data, {"time_s": r.time[::3], "voltage_V": r.u[::3], "displacement_mm": r.y[::3]})
+    out = tmp_path / "fit"
+    argv = ["fit", str(data), "--model", "eupi", "--thresholds", "--tilts", "--max-steps", "1", "--out", str(out)]
+    assert cli_main([*argv, "--no-figures", "--n-sym", "4", "--n-alpha", "2", "--n-asym", "2"]) == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert doc["solver"]["converged"] is False
+    assert f"warning: eupi: {doc['solver']['message']}" in capsys.readouterr().err

@@ -186,7 +186,9 @@ def run(args):
     doc = write_fit_outputs(out, rec, doc, masks, figures=not args.no_figures)
     sv = doc["solver"]
     if not sv["converged"]:
-        print(f"warning: {sv['message']}", file=sys.stderr)
+        # name the class: with --model auto several were refined, and the message is the kept one's (trial 7 read it
+        # as a failure of the whole fit)
+        print(f"warning: {doc['settings'].get('structure', args.model)}: {sv['message']}", file=sys.stderr)
     tr, va = doc["metrics"]["train"], doc["metrics"]["validation"]
     noise = doc["metrics"].get("noise") or {}
     line = f"train rmse {tr['rmse']:.4g}{_in_noise(noise, 'train')}, e_r {tr['e_r_percent']:.3g} %"

@@ -904,7 +904,9 @@ def _refit_whole(
 ):
     """The split fit's structure choices, refitted on every sample of the record (``chunked``: a kept refinement's warm
     refit in `LM_CHUNK`-step chunks, as an early-stopped split refinement ran)."""
-    say("refitting the chosen structure on the whole record", progress)
+    # the output sign in the line: an undecided sign refits both (`deploy`), which read as the same refit said twice
+    sign = getattr(hysteresis_of(chosen), "orientation", 1)
+    say(f"refitting the chosen structure on the whole record (output {'rises' if sign > 0 else 'falls'})", progress)
     ones = [record.measured.astype(float)]  # every measured sample (none a resampling interpolated)
     if refinement == "kept" and max_steps > 0:
         # warm start from the split's refined model: the whole-record optimum is close, LM needs few steps
