@@ -94,9 +94,13 @@ def test_varpro_with_nothing_nonlinear_is_the_bounded_least_squares_fit(rng):
     assert vp.loss == pytest.approx(lin.loss, rel=1e-9)
 
 
-def test_projected_round_traces_once_per_structure(rng):
+def test_projected_round_traces_once_per_structure(rng, monkeypatch):
     """A second fit of the same structure and record length with other values reuses the compiled round."""
+    from smafl_jax.identify import _fit  # private: monkeypatch target (release_if_needed)
     from smafl_jax.identify._varpro_refine import _lm_round_traced  # private: the trace counter of the hot solve
+
+    # a long test worker can reach the memory-map limit, where `fit` clears JAX's caches (a retrace that is not a bug)
+    monkeypatch.setattr(_fit, "release_if_needed", lambda: False)
 
     base, _, u, y = _eupi_problem(rng, n=300)
     spec = sj.default_trainable(base, thresholds=True)
