@@ -3,15 +3,16 @@
 Why: the joint refinement (`smafl_jax.identify.fit`, solver ``"lm"``) trains the operator gains together with the
 thresholds, tilts, thermal rate, thermal start and operator memory.  Dozens of nearly collinear operator columns make
 that problem badly conditioned: on an independent cold-start step record (plant C r03: 3 true operators, 5 Hz, SNR
-3300) joint LM on the default 24-operator grid stalled at 10.6x the noise on its own training samples, and 3000 steps
+3300) joint LM on the default 24-operator grid stopped at 10.6x the noise on its own training samples, and 3000 steps
 without the stall rule reached 3.45x; the true plant refined from itself stays at 1.07x.  With the gains solved
-exactly at every point (variable projection, Golub-Pereyra), the same search reached 3.6x in 12 s from the descended
-rule and 1.02x after the operator-memory search (session 44, .notes/session44/).
+exactly at every point (variable projection, Golub-Pereyra) the same start reached 3.37x in 179 steps, and 1.02x after
+a search of the operator memory and a second search (session 44, .notes/session44/verify_r03.py).
 
-Each round freezes the active set of the bounded least-squares gains (the columns BVLS keeps above 0, and every
-signed column), runs LM on the projected residual ``b - A(x) A_S(x)^+ b`` (the gains of that set solved by
-column-scaled normal equations, differentiable), then solves BVLS again at the new ``x``.  A round is kept only when
-the BVLS loss went down; a new active set starts the next round (an operator BVLS switches on or off).
+At every evaluation the bounded least-squares problem of the gains is solved on the host (`linear.solve_gram`) for
+its active set (the operator columns it keeps above 0, and every signed column); that set carries no gradient (it is
+piecewise constant), and the gains of the set come from column-scaled normal equations, differentiated through.  So the
+residual is ``A(x) theta(x) - b`` with ``theta(x)`` the exact bounded solution.  A round is one LM search (with the
+joint LM's stall rule); another round restarts LM (fresh damping) while the bounded loss still falls.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ from .linear import solve_gram
 
 __all__ = ["VARPRO_ROUNDS", "nonlinear_spec", "refine_projected"]
 
-#: Active-set rounds of `refine_projected` (each one LM search); measured: 2-4 rounds until BVLS stops gaining.
+#: LM searches of `refine_projected` at most, each restarted from the last (measured on plant C r03: the second gained
+#: nothing; a restart helps where LM stopped at a kink of the active set).
 VARPRO_ROUNDS = 4
 #: Diagonal jitter of the projected normal equations, relative to their mean diagonal (unit-scaled columns).
 _JITTER = 1e-10
@@ -96,8 +98,8 @@ def refine_projected(model, spec, args, bvls, feats, *, max_steps, rtol, atol, s
     ``stall``: each round also stops once its steps stop paying (`StallStop`), as the joint LM does.
     """
     spec_nl = nonlinear_spec(model, spec)
-    model, loss, theta = bvls(model)
-    if theta is None:
+    model, loss, gains = bvls(model)
+    if gains is None:
         return model, loss, 0, False  # the model is not finite here: the caller keeps its start
     if not jax.tree_util.tree_leaves(eqx.filter(spec_nl, lambda s: s is True)):
         return model, loss, 0, True  # nothing nonlinear to train: the BVLS gains are the fit
@@ -113,6 +115,6 @@ def refine_projected(model, spec, args, bvls, feats, *, max_steps, rtol, atol, s
         got = bvls(moved)
         if not np.isfinite(got[1]) or not got[1] < loss * (1.0 - 1e-9):
             break
-        model, loss, theta = got
+        model, loss, _ = got
         ok = bool(good)
     return model, loss, n_steps, ok
