@@ -7,7 +7,7 @@ whole of its partner record (another drive family), against the partner's noise-
 ``in_range`` scores the partner only up to the first sample whose true hysteresis input leaves the fitted record's
 trained range by more than 1 % of that range (after it the prediction is extrapolation, reported separately).
 
-    OPENBLAS_NUM_THREADS=1 python experiments/new_run_transfer.py OUT.jsonl 7 11 13 [--opts '{"gain_prior": 0.1}']
+    OPENBLAS_NUM_THREADS=1 python experiments/new_run_transfer.py OUT.jsonl 7 11 13 [--opts '{"gain_prior": 0.1}'] [--cells PWM]
     python experiments/new_run_transfer.py --table A.jsonl B.jsonl
 
 Rows are appended to OUT.jsonl as each fit finishes (a rerun appends; the table reads the last row per key).
@@ -40,13 +40,15 @@ def _rmse(e) -> float:
     return float(np.sqrt(np.mean(np.square(e)))) if len(e) else float("nan")
 
 
-def run(out: Path, seeds, opts: dict, minutes: float) -> None:
+def run(out: Path, seeds, opts: dict, minutes: float, cells: str = "") -> None:
     import smafl_jax as sj
     from smafl_jax.report import fit_record
 
     for seed in seeds:
         recs = {cell: ip.make_record(seed, minutes=minutes, **ip.MATRIX_CELLS[cell]) for cell in PAIRS}
         for cell, partner in PAIRS.items():
+            if cells not in cell:
+                continue
             r, p = recs[cell], recs[partner]
             if r["truth"]["hysteresis"] != p["truth"]["hysteresis"]:
                 raise RuntimeError(f"seed {seed}: {cell!r} and {partner!r} are not the same plant")
@@ -121,11 +123,12 @@ def main() -> None:
     ap.add_argument("--table", action="store_true")
     ap.add_argument("--opts", default="{}", help="JSON keyword options of fit_record")
     ap.add_argument("--minutes", type=float, default=10.0)
+    ap.add_argument("--cells", default="", help="fit only the cells whose name contains this text")
     a = ap.parse_args()
     if a.table:
         table(a.args)
     else:
-        run(Path(a.args[0]), [int(s) for s in a.args[1:]], json.loads(a.opts), a.minutes)
+        run(Path(a.args[0]), [int(s) for s in a.args[1:]], json.loads(a.opts), a.minutes, a.cells)
 
 
 if __name__ == "__main__":
