@@ -91,6 +91,7 @@ def solve(
     jitter: float = 1e-12,
     method: str = "bvls",
     drop_constant: bool = False,
+    dead_rtol: float = DEAD_RTOL,
     clip: bool = True,
     dof: bool = False,
     rhs: str = "lower",
@@ -104,6 +105,8 @@ def solve(
     ``scale``: scale columns to unit RMS; ``jitter``: diagonal added to the reduced Gram matrix,
     relative to its mean diagonal; ``clip``: put bounded results that BVLS leaves a rounding error
     outside their bound back on it (a saved model with a weight of -1e-18 is refused on loading);
+    ``dead_rtol``: with ``drop_constant``, a non-negative column whose peak-to-peak is at most ``dead_rtol`` x max|A|
+    gets coefficient 0 (default `DEAD_RTOL`: it never moved);
     ``dof``: also return the effective number of parameters; ``rhs``: how ``R' c = A' b`` is solved,
     ``"lower"`` (forward substitution on ``R'``) or ``"transpose"`` (LAPACK's transposed solve on ``R``):
     the same mathematics, rounded differently in the last bit; ``jitter_of``: ``"mean"`` (jitter x the
@@ -128,7 +131,7 @@ def solve(
     if method == "nnls" and (lower is not None or upper is not None):
         raise ValueError("method='nnls' handles non-negative and unbounded columns only; use method='bvls' for bounds")
     if drop_constant:
-        dead = nonneg & (np.ptp(A, axis=0) <= DEAD_RTOL * max(float(np.max(np.abs(A))), 1e-300))
+        dead = nonneg & (np.ptp(A, axis=0) <= dead_rtol * max(float(np.max(np.abs(A))), 1e-300))
         if np.any(dead):
             keep = ~dead
             if not np.any(keep):
@@ -146,6 +149,7 @@ def solve(
                 jitter=jitter,
                 method=method,
                 drop_constant=True,
+                dead_rtol=dead_rtol,
                 clip=clip,
                 dof=dof,
                 rhs=rhs,
