@@ -94,3 +94,29 @@ def test_cli_gain_prior_values():
     assert _gain_prior_arg("none") is None
     assert _gain_prior_arg("2.5") == 2.5
     assert check_gain_prior(None) is None
+
+
+@pytest.mark.parametrize(("wiggle", "weak"), [(5e-4, True), (5e-3, False)])
+def test_a_column_that_barely_moves_gets_no_gain(wiggle, weak):
+    """Below `WEAK_RTOL` x max|A| of movement a column's gain is 0, whatever trend it could explain (plant C r10: a
+    gain near 50 on a column moving by 6e-5 of the span broke a new run); above it the data decide as before."""
+    from smafl_jax.identify._gain_prior import WEAK_RTOL  # private: the threshold the test straddles
+
+    rng = np.random.default_rng(3)
+    n = 2000
+    t = np.linspace(0.0, 1.0, n)
+    u = 0.5 + 0.4 * np.sin(2 * np.pi * 3 * t) * t
+    trend = np.sin(2 * np.pi * 0.7 * t)
+    col = 0.8 + 0.5 * wiggle * trend
+    A = np.column_stack([u, np.maximum(u - 0.3, 0.0), col, np.ones(n)])
+    nonneg = np.array([True, True, True, False])
+    y = 2.0 * u + np.maximum(u - 0.3, 0.0) + 0.3 + 0.02 * trend + 0.01 * rng.standard_normal(n)
+    assert bool(np.ptp(col) <= WEAK_RTOL * np.max(np.abs(A))) == weak  # the design straddles the threshold as meant
+    x, info = map_gains(A, y, nonneg, 1.0)
+    free, *_ = np.linalg.lstsq(A, y, rcond=None)
+    assert free[2] * 0.5 * wiggle == pytest.approx(0.02, rel=0.2)  # least squares explains the trend through that column
+    if weak:
+        assert x[2] == 0.0 and info["weak_columns"] == 1
+        assert info["rmse"] > info["rmse_free"]  # the trend is left in the residual: the price of a sane gain
+    else:
+        assert x[2] * 0.5 * wiggle == pytest.approx(0.02, rel=0.2) and info["weak_columns"] == 0

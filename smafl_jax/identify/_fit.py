@@ -680,7 +680,8 @@ def fit(
     theta, info = map_gains(A, b, nonneg, gain_prior)
     say(
         f"gain prior (kappa {gain_prior:g}): largest operator gain {info['largest_gain_free']:.4g} -> "
-        f"{info['largest_gain']:.4g}, training RMSE {info['rmse_free']:.4g} -> {info['rmse']:.4g}",
+        f"{info['largest_gain']:.4g}, training RMSE {info['rmse_free']:.4g} -> {info['rmse']:.4g}"
+        + (f"; {info['weak_columns']} barely moving operator column(s) at gain 0" if info["weak_columns"] else ""),
         progress,
     )
     model = setw(res.model, jnp.asarray(theta))

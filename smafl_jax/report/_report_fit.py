@@ -709,6 +709,11 @@ def _fit_structure(
                 f"{gp['largest_gain']:.4g} against an output range of {gp['output_range']:.4g} (training RMSE "
                 f"{gp['rmse_free']:.4g} -> {gp['rmse']:.4g}): gains far beyond the output range that cancel the offset "
                 "break on a new run; --gain-prior none keeps the least-squares gains"
+                + (
+                    f"; {gp['weak_columns']} operator(s) that barely moved over the training samples got gain 0"
+                    if gp.get("weak_columns")
+                    else ""
+                )
             )
         if not res.converged:
             notes.append(f"solver: {res.message}")
