@@ -6,10 +6,11 @@ public API and scored on the last 30 % (RMSE / noise SD against the noisy and th
 clean output range).  Two plain-numpy baselines fitted on the same 70 % are scored on the same 30 %: a static
 cubic of the voltage and a first-order lag (k by grid, of V^2 or V, the better on the training part) then a cubic.
 
-    python experiments/fit_plant_b.py [--smoke] [--seeds 1 2 3] [--work /tmp/plant_b_fits]
+    python experiments/fit_plant_b.py [--smoke] [--seeds 1 2 3] [--work /tmp/plant_b_fits] [--jsonl OUT.jsonl]
     python experiments/fit_plant_b.py --plot NAME [NAME ...]   # prediction vs measured, T vs output
 
-Results: experiments/results/plant_b_default_fit.jsonl (one line per record, appended as each finishes) and .md.
+Results: experiments/results/plant_b_default_fit.jsonl (one line per record, appended as each finishes) and .md;
+``--jsonl OUT.jsonl`` gives a new sweep its own file (and OUT.md), e.g. the session-46 fresh seeds 22-23.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ import indep_plant_b as pb  # noqa: E402
 RESULTS = ROOT / "experiments" / "results"
 JSONL = RESULTS / "plant_b_default_fit.jsonl"
 MD = RESULTS / "plant_b_default_fit.md"
-SMAFL = "/work/venv/bin/smafl"
+#: the `smafl` of the interpreter running this script (its venv), so the fits use the same install
+SMAFL = str(Path(sys.executable).with_name("smafl"))
 GRID_DRIVES = ("pwm", "multisine", "steps", "triangle")
 GRID_RATES = (5, 25, 100)
 
@@ -254,7 +256,7 @@ def verdict(r: dict) -> str:
     return ", ".join(bad) or "ok"
 
 
-def markdown(rows: list[dict], cmd: str) -> str:
+def markdown(rows: list[dict], cmd: str, probes: bool = True) -> str:
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
     except OSError:
@@ -293,8 +295,8 @@ def markdown(rows: list[dict], cmd: str) -> str:
         gm = float(np.exp(np.mean([np.log(r["heldout_x_noise"]) for r in ok])))
         lines += ["", f"Records: {len(rows)}; crashed {len(rows) - len(ok)}; held-out geometric mean {gm:.2f}x noise; "
                   f"failures (>3x noise, worse than a baseline, wrong orientation, crash): {sum(verdict(r) != 'ok' for r in rows)}."]  # fmt: skip
-    probes = RESULTS / "plant_b_probes.jsonl"
-    if probes.exists():
+    probes = RESULTS / "plant_b_probes.jsonl" if probes else None  # the session-19 probes belong to its table only
+    if probes is not None and probes.exists():
         lines += [
             "",
             "## Probes (one record refitted with one change; `--only NAME --probe-args '...'` or `--every N`)",
@@ -358,6 +360,7 @@ def main() -> None:
     ap.add_argument("--probe-args", default="", help="probe: extra `smafl fit` options, e.g. '--orientation rises'")
     ap.add_argument("--every", type=int, default=1, help="probe: keep every N-th sample of the record")
     ap.add_argument("--linear-thermal", action="store_true", help="probe: the same record from a linear thermal plant")
+    ap.add_argument("--jsonl", type=Path, default=None, help="results file of the sweep (default: the session-19 one)")
     args = ap.parse_args()
     if args.plot:
         plot(args.plot, args.work)
@@ -369,7 +372,7 @@ def main() -> None:
         cells = [c for c in cells if c["rate_hz"] <= 25][:2]
     extra = tuple(args.probe_args.split())
     probe = bool(extra) or args.every > 1 or args.linear_thermal
-    jsonl = args.work / "smoke.jsonl" if args.smoke else (RESULTS / "plant_b_probes.jsonl" if probe else JSONL)
+    jsonl = args.work / "smoke.jsonl" if args.smoke else (RESULTS / "plant_b_probes.jsonl" if probe else args.jsonl or JSONL)
     args.work.mkdir(parents=True, exist_ok=True)
     done = set()
     rows = []
@@ -394,8 +397,8 @@ def main() -> None:
         with open(jsonl, "a") as fh:  # appended per record so a partial run is kept
             fh.write(json.dumps(row, default=float) + "\n")
     cmd = "python experiments/fit_plant_b.py " + " ".join(sys.argv[1:])
-    text = markdown(rows, cmd)
-    target = args.work / "smoke.md" if args.smoke else MD
+    text = markdown(rows, cmd, probes=args.jsonl is None)
+    target = args.work / "smoke.md" if args.smoke else (args.jsonl.with_suffix(".md") if args.jsonl else MD)
     tmp = target.with_suffix(".md.tmp")
     tmp.write_text(text)
     os.replace(tmp, target)
