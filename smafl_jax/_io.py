@@ -404,6 +404,24 @@ def prepare_out_dir(out: str | os.PathLike, *, announce: bool = True) -> Path:
     return out
 
 
+def leftovers_note(out: str | os.PathLike, since: float) -> str | None:
+    """A note naming the files in ``out`` that this run did not write (modified before ``since``), else None.
+
+    A rerun into a folder replaces the files of the same name; the others (figures of an earlier run made with
+    figures, then a rerun with ``--no-figures``; a figure another model class drew) stay beside the new fit.json
+    and would be read as this run's.  They are named, never removed: they are the user's earlier results.
+    """
+    out = Path(out)
+    try:
+        old = sorted(p.name for p in out.iterdir() if not p.name.startswith(".") and p.is_file() and p.stat().st_mtime < since)
+    except OSError:
+        return None
+    if not old:
+        return None
+    shown = ", ".join(old[:6]) + (f" and {len(old) - 6} more" if len(old) > 6 else "")
+    return f"note: {out} still holds {shown} from an earlier run: this run did not write {'it' if len(old) == 1 else 'them'}"
+
+
 def check_record_magnitude(record):
     """`UserInputError` when a record's input or output is so large that squared errors overflow float64.
 

@@ -146,6 +146,27 @@ def test_validation_errors_leave_nothing_behind(tmp_path, capsys):
         assert not Path(m).exists()
 
 
+def test_rerun_names_the_earlier_runs_files_it_did_not_replace(tmp_path, capsys):
+    """A rerun with --no-figures leaves an earlier run's figures beside the new fit.json: they are named, not removed."""
+    rec = str(_short_record(tmp_path))
+    out = tmp_path / "fit"
+    out.mkdir()
+    old = out / "fit_loops.png"
+    old.write_bytes(b"an earlier run's figure")
+    os.utime(old, (time.time() - 60, time.time() - 60))  # written a minute before this run
+    (out / ".hidden").write_text("not a result")
+    fast = ["--model", "eupi", "--max-steps", "0", "--n-sym", "3", "--n-alpha", "0", "--n-asym", "0", "--split", "none"]
+    assert main(["fit", rec, *fast, "--no-figures", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    note = [line for line in err.splitlines() if "from an earlier run" in line]
+    assert len(note) == 1 and "fit_loops.png" in note[0], err
+    assert "fit.json" not in note[0] and "report.md" not in note[0] and ".hidden" not in note[0], note
+    assert old.read_bytes() == b"an earlier run's figure"  # the user's earlier result is kept
+    old.unlink()  # every remaining file is rewritten by a second run: nothing to name
+    assert main(["fit", rec, *fast, "--no-figures", "--out", str(out)]) == 0
+    assert "from an earlier run" not in capsys.readouterr().err
+
+
 def test_failed_run_removes_only_the_empty_folder_it_created(tmp_path, capsys, monkeypatch):
     from smafl_jax.cli import control
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from pathlib import Path
 
 from .._choices import GAIN_PRIOR
@@ -170,6 +171,7 @@ def run(args):
     if len(records) > 1:
         return _run_records(args, records, options["grid"])
     rec = records[0]
+    started = time.time()  # files in the folder older than this are an earlier run's (`leftovers_note`)
     out = prepare_out_dir(args.out or f"fit_{Path(rec.path).stem}")
     print(f"fitting {args.model} to {rec.path} ({len(rec)} samples, {rec.input_name} -> {rec.output_name})", file=sys.stderr)
     model, doc, masks = fit_record(rec, **options)
@@ -207,7 +209,16 @@ def run(args):
         print(f"warning: {cover}", file=sys.stderr)
     _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
+    _say_leftovers(out, started)
     return 0
+
+
+def _say_leftovers(out, started):
+    from .._io import leftovers_note
+
+    note = leftovers_note(out, started)
+    if note:
+        print(note, file=sys.stderr)
 
 
 def _accelerator_note():
@@ -310,6 +321,7 @@ def _run_records(args, records, grid):
     from ..identify._metrics import ABOVE_NOISE
     from ..identify._multi_record import START_MISMATCH, fit_records, write_records_outputs
 
+    started = time.time()
     out = prepare_out_dir(args.out or f"fit_{records[0].name}_and_{len(records) - 1}_more")
     print(
         f"fitting {args.model} jointly to {len(records)} records ({sum(len(r) for r in records)} samples, "
@@ -358,4 +370,5 @@ def _run_records(args, records, grid):
             )
     _print_extras(doc)
     print(f"wrote {out / 'fit.json'}, {out / 'report.md'}" + ("" if args.no_figures else " and figures"))
+    _say_leftovers(out, started)
     return 0
