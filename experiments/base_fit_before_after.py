@@ -82,6 +82,10 @@ for seed in seeds:
                 c["structure"]: (c["validation"] or {}).get("rmse", np.nan) / sd
                 for c in (doc["settings"].get("structure_choice") or {}).get("candidates", [])
             },
+            candidates_train={  # each candidate's split-training RMSE over the noise SD (the class-choice rule reads it)
+                c["structure"]: c["train_rmse"] / sd
+                for c in (doc["settings"].get("structure_choice") or {}).get("candidates", [])
+            },
             seconds=sec,
             chosen=(doc["settings"].get("structure_choice") or {}).get("chosen", doc["settings"].get("structure")),
             k1_true=r["truth"]["thermal"]["k1"],

@@ -36,7 +36,8 @@ def add_parser(sub):
         choices=MODELS,
         default="auto",
         help="auto (every hysteresis class fitted and the lower validation RMSE kept: behind the thermal lag for a drive "
-        "voltage (cascade, cascade-preisach, cascade-preisach-gauss), on the input itself for any other input (eupi, preisach, preisach-gauss); thresholds and "
+        "voltage (cascade, cascade-preisach, cascade-preisach-gauss; the EUPI cascade stays unless a class with a lower "
+        "validation RMSE halves it or fits the training part better), on the input itself for any other input (eupi, preisach, preisach-gauss); thresholds and "
         "tilts trained), eupi (paper eq. 2), cascade (thermal + EUPI), cascade-NAME (thermal + another registered "
         "hysteresis model), joule (eq. 7 lag), or any other registered hysteresis model (preisach, preisach-gauss); default auto",
     )
