@@ -129,6 +129,23 @@ def test_screening_finds_the_sensor_orientation_on_independent_records(orientati
     assert model.thermal.init == "given"
 
 
+def test_screening_keeps_the_right_sign_of_a_record_that_starts_warm():
+    # an independent plant started warm, its operators at random places, read by a length sensor: on the steady and cold
+    # starts the right sign ("falls") scored about 30x the wrong one and was dropped before its warm starts were tried
+    # (session 47: the default fit then held out 18.4x the noise, 1.6x with the sign forced); the prescreen now takes
+    # the warmest start too
+    r = indep_plant.make_record(53, drive="staircase", rate_hz=10, minutes=5, start="warm")
+    assert r["truth"]["sensor"]["orientation"] == "length" and r["truth"]["hysteresis"]["memory"]["kind"] == "random"
+    start = sj.Cascade.from_range(float(np.max(r["u"])), n_sym=4, n_alpha=2, n_asym=2)
+    w = np.zeros(len(r["u"]))
+    w[: r["heldout_start"]] = 1.0
+    # one hysteresis input screened (suite time); with the steady and cold starts alone it picks "rises" on this input
+    model, table, _ = screen_start(start, [(r["u"], r["y"], r["dt"])], [w], k1_grid=8, sees="voltage")
+    assert model.hysteresis.orientation == -1
+    warmest = max(f for f in {row["thermal_start"] for row in table} if not isinstance(f, str))
+    assert {row["orientation"] for row in table if row["thermal_start"] == warmest} == {1, -1}
+
+
 def test_screening_takes_the_memory_rule_that_fits_an_independent_virgin_plant():
     """The plant's operators start at 0 (a virgin actuator, tests/indep_plant.py memory="zero").  On this record the
     descended rule cannot fit (profiled training MSE ~10x the noise variance) and the zero rule can: the screening
