@@ -408,17 +408,16 @@ def _best(runs, prefer=None):
 def _choice_reason(scored, name, prefer, validation):
     """How ``name`` was kept, for the note and fit.json ``structure_choice.on``."""
     best = min(scored, key=_val)
-    if prefer is None or best[0] == prefer:
+    d = next((r for r in scored if r[0] == prefer), None)
+    if d is None or best is d:
         return f"lowest {validation} RMSE"
     if name == prefer:
-        d = next(r for r in scored if r[0] == prefer)
         return (
             f"the default class: {best[0]}'s {validation} RMSE ({_val(best):.4g}) is not below 1/{DEFAULT_CLASS_MARGIN:g} of "
             f"{prefer}'s ({_val(d):.4g}) and {prefer} fits the training samples at least as well ({_train(d):.4g} vs "
             f"{_train(best):.4g}), so the paper's class is kept"
         )
-    d = next((r for r in scored if r[0] == prefer), None)
-    if d is None or _val(d) >= DEFAULT_CLASS_MARGIN * _val(best):
+    if _val(d) >= DEFAULT_CLASS_MARGIN * _val(best):
         return f"lowest {validation} RMSE"
     return (
         f"lowest {validation} RMSE; the default {prefer}, within {DEFAULT_CLASS_MARGIN:g}x of it, fits the training samples "
