@@ -86,6 +86,10 @@ for seed in seeds:
                 c["structure"]: c["train_rmse"] / sd
                 for c in (doc["settings"].get("structure_choice") or {}).get("candidates", [])
             },
+            # the split fit's operator-memory choice (rule vs fitted, each with its validation RMSE), as fit.json says it
+            memory_choice=[n for n in doc.get("notes", []) if "operator memory at t = 0" in n],
+            # how far the rule- and fitted-memory split fits part on sweeps of the trained range (session 48)
+            memory_spread=doc["settings"].get("memory_spread"),
             seconds=sec,
             chosen=(doc["settings"].get("structure_choice") or {}).get("chosen", doc["settings"].get("structure")),
             k1_true=r["truth"]["thermal"]["k1"],

@@ -148,7 +148,7 @@ def run(args):
     from ..data import load_records
     from ..data._data import parse_resample
     from ..identify._metrics import ABOVE_NOISE
-    from ..report._report_fit import STATIC_ON_DRIVE, fit_record, write_fit_outputs
+    from ..report._report_fit import BRANCHES_OPEN, STATIC_ON_DRIVE, fit_record, write_fit_outputs
 
     options = record_fit_options(args)  # checks the flags before anything is read
     records = load_records(args.data, args.input, args.output, time=args.time, resample=parse_resample(args.resample))
@@ -181,7 +181,7 @@ def run(args):
     if doc["settings"].get("structure_choice"):  # model auto compared classes: say which won and on what
         print(doc["notes"][0], file=sys.stderr)
     for note in doc["notes"]:
-        if note.startswith((STATIC_ON_DRIVE, ABOVE_NOISE)):
+        if note.startswith((STATIC_ON_DRIVE, ABOVE_NOISE, BRANCHES_OPEN)):
             print(f"warning: {note}", file=sys.stderr)
     train_rmse = doc["metrics"]["train"].get("rmse")
     if train_rmse is None or not math.isfinite(float(train_rmse)):  # never report a non-finite fit as a success

@@ -40,6 +40,7 @@ from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
 from ..identify._metrics import metrics, noise_floor, noise_floor_note
 from ..identify._split import interpolated_note, split_masks
+from ..identify._spread import sweep_spread
 from ..models._cascade import Cascade
 from ..models._eupi import EUPI
 from ..models._hysteresis import hysteresis_class, hysteresis_of, thermal_of
@@ -119,6 +120,8 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
 
 #: Start of the note (printed as a warning by `smafl fit`) for a static hysteresis class fitted to a drive voltage.
 STATIC_ON_DRIVE = "static model on a drive voltage:"
+#: Start of the note (printed as a warning by `smafl fit`) when two equally good fits part on sweeps of the trained range.
+BRANCHES_OPEN = "branches the record leaves open:"
 
 
 def structure_start(model, record, thresholds, tilts, grid):
@@ -643,7 +646,7 @@ def _fit_structure(
     def sign_of(m):
         return "rises" if hysteresis_of(m).orientation > 0 else "falls"
 
-    picks = []
+    picks, memory_runs = [], []
     for s in starts:
         # the label is the rule the screening chose (descended / zero) or "fitted": the whole-record refit pins it
         candidates = [(getattr(hysteresis_of(s), "init", memory_used), s)]
@@ -652,6 +655,7 @@ def _fit_structure(
             if alt is not None:
                 candidates.append(("fitted", alt[0]))
         runs = [(label, *refine(m)) for label, m in candidates]
+        memory_runs.append(runs)
         # one candidate (no validation samples, or memory fixed): nothing to choose, and no mean over an empty set
         picks.append(runs[0] if len(runs) == 1 else min(runs, key=lambda r: val_mse(r[2])))
         if len(runs) > 1:
@@ -708,6 +712,7 @@ def _fit_structure(
     memory_used = label
     if note:
         notes.append(note)
+    spread = _memory_spread(memory_runs[chosen], rec, record.y[train], notes) if len(memory_runs[chosen]) > 1 else None
     if view_info and max_steps > 0:
         res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress, gain_prior))
     yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
@@ -782,6 +787,7 @@ def _fit_structure(
                 "sees": sees,
                 "memory": memory,
                 "memory_used": memory_used,
+                "memory_spread": spread,
                 "start_screening": screening,
                 "split": split_info["kind"],
                 "val_fraction": val_fraction,
@@ -869,6 +875,29 @@ def _lm_chunks(model, spec, rec, weights, solver, total, gain_prior, progress, l
     res = best[1] if look is not None else with_prior(best[1])
     message = "converged" if converged and best[2] == steps else f"{solver}: {best[2]} steps kept of {steps} run"
     return res._replace(n_steps=best[2], converged=converged, message=message, solver=solver), best[2], steps, looks
+
+
+#: Noise SDs (RMS) by which the rule- and fitted-memory fits may part on sweeps of the trained range before a note says so.
+SPREAD_WARN = 3.0
+
+
+def _memory_spread(runs, rec, y_train, notes):
+    """fit.json ``settings.memory_spread``: how far the split fits with the rule's and the fitted operator memory part on
+    sweeps of the trained input range after the record (`sweep_spread`), in output units and noise SDs; a note when
+    they part by more than `SPREAD_WARN` SDs (the record leaves the response on branches it did not walk open)."""
+    (la, ra, *_), (lb, rb, *_) = runs[0], runs[1]
+    out = {"models": [la, lb], **sweep_spread(ra.model, rb.model, rec.u, rec.dt)}
+    sd = noise_floor([y_train])["sd"]
+    out["noise_sd"] = sd
+    out["rms_ratio"] = out["rms"] / sd if sd else None
+    if out["rms_ratio"] is not None and not out["rms_ratio"] <= SPREAD_WARN:
+        notes.append(
+            f"{BRANCHES_OPEN} the split fits with {la} and {lb} operator memory part by {out['rms_ratio']:.3g}x the noise SD "
+            f"(RMS; largest {out['max']:.4g}) on {out['sweeps']} slow sweeps of the trained input range after the record, "
+            "while fitting its samples alike: the record does not determine the response on branches it did not walk, "
+            "and a new drive that walks them may see errors of that size (fit.json settings.memory_spread)"
+        )
+    return out
 
 
 def _rejected(res, start, y0, e_start, e_ref):
