@@ -413,6 +413,7 @@ def screen_start(
     memory="fitted",
     choose="folds",
     record_starts=False,
+    other_inputs=False,
     progress=False,
 ):
     """Best profiled start over output orientation, hysteresis input and thermal start candidates.
@@ -451,6 +452,13 @@ def screen_start(
     (held-out 146x), while the zero rule fits it at 1.0x at the plant's k1.  Measured on independent
     records whose operators start on an unknown branch, the descended rule alone left 26x noise on
     held-out data where the fitted memory left 8x (see issue 18's note).
+
+    ``other_inputs`` (with ``val_weights`` and both hysteresis inputs screened): the best start of the input the score
+    did not choose is finished too, ``info["input_alternatives"]``, for the caller to refine and compare on its
+    validation samples (`fit_record` does).  Why: the score ranks the inputs on the screening grid (thresholds and
+    tilts fixed), where the effective voltage's finer resolution at low heat can win on a plant whose hysteresis sees
+    the heat; refined, the plant's own input wins (session 49, plant A random cells: held out 17.6x -> 1.3x and
+    2.4x -> 1.1x with the heat, whose screening score had lost 2.5x and 16x).
     """
     inits = rule_inits(start, memory)
     # the candidates are compared on the class's screening grid (`AbstractHysteresis.screening_grid`), the winner is
@@ -483,11 +491,12 @@ def screen_start(
         inputs, starts = (None,), (None,)
     say = progress_line if progress else (lambda msg: None)
     memo = _SHARED.get()
-    options = (orientation, thermal_start, sees, k1_grid, memory, choose, free_start)
+    others = bool(other_inputs) and len(inputs) > 1
+    options = (orientation, thermal_start, sees, k1_grid, memory, choose, free_start, others)
 
     def make():
         return _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi, k1_grid, memory,
-                       choose, say)  # fmt: skip
+                       choose, others, say)  # fmt: skip
 
     if memo is None:
         finished, table = make()
@@ -499,6 +508,13 @@ def screen_start(
     finished = [f for f in finished if f[1] <= ORIENTATION_AMBIGUITY * finished[0][1]]
     model, _, info = finished[0]
     model = _on_own_grid(model, fine, data, weights, u_hi, free_start, say)
+    if info and info.get("input_alternatives"):
+        alts, t_alt = [], time.perf_counter()
+        for cand in info["input_alternatives"]:  # profiled starts of the other input (`_finish_sign`): finished alike
+            say("  the other hysteresis input is finished too: " + " ".join(str(x) for x in cand[2][1::2] if x))
+            got = _finish_start([cand], data, weights, free_start, u_hi, memory, table, say, t_alt)[0]
+            alts.append(_on_own_grid(got, fine, data, weights, u_hi, free_start, say))
+        info = {**info, "input_alternatives": alts}
     if len(finished) > 1:
         info = {**info, "alternatives": [_on_own_grid(f[0], fine, data, weights, u_hi, free_start, say) for f in finished[1:]]}
         say(
@@ -509,7 +525,8 @@ def screen_start(
     return model, table, info
 
 
-def _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi, k1_grid, memory, choose, say):
+def _screen(start, data, weights, val_weights, signs, inputs, starts, inits, free_start, u_hi, k1_grid, memory, choose, others,
+            say):  # fmt: skip
     """The screening of `screen_start` on the screening grid: ``(finished, table)``, the finished starts ``[(model, loss,
     info)]`` of each output sign kept, best first, and one table row per candidate."""
     table, results = [], {}  # results[(sign, input, start, memory rule)] = (loss, profiled model, key, info)
@@ -577,6 +594,7 @@ def _screen(start, data, weights, val_weights, signs, inputs, starts, inits, fre
     n_cand += len(inputs) * len(rest) * (len(kept) - 1) * len(inits)
     context = (
         inputs, rest, results, table, candidate, report, data, weights, val_weights, free_start, u_hi, memory, inits[0], choose,
+        others,
     )  # fmt: skip
     finished = sorted((f for sign in kept for f in _finish_sign(sign, *context, say, t_all)), key=lambda f: f[1])
     return finished, table
@@ -611,7 +629,7 @@ def _on_own_grid(model, fine, data, weights, u_hi, free_start, say):
 
 
 def _finish_sign(sign, inputs, rest, results, table, candidate, report, data, weights, val_weights, free_start, u_hi,
-                 memory, default_rule, choose, say, t_all):  # fmt: skip
+                 memory, default_rule, choose, others, say, t_all):  # fmt: skip
     """Screen the remaining starts of one output sign: ``[(model, loss, info)]`` of its best profiled start.
 
     The hysteresis input is chosen on held-out error when held-out samples are given (``choose``: the fold score of
@@ -666,6 +684,10 @@ def _finish_sign(sign, inputs, rest, results, table, candidate, report, data, we
                 + f" ({', '.join(' '.join(str(x) for x in k if x) + f' {v:.4g}' for k, v in shown.items())})"
             )
             model, loss, info = _finish_start([best], data, weights, free_start, u_hi, memory, table, say, t_all)
+            if others:
+                # the other input's own best profiled start: `screen_start` finishes it for the winning sign only, and
+                # the caller refines both inputs and its validation samples decide
+                info = {**(info or {}), "input_alternatives": [best_by[k] for k in per_input.values() if k != chosen]}
             choice = {
                 "chosen": {"sees": chosen[0], "memory": chosen[1]},
                 "on": how,
