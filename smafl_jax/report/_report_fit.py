@@ -189,7 +189,12 @@ def fit_record(record, *, model="auto", progress=False, **options):
         return _fit_structure(record, model=model, progress=progress, **options)
     return choose_structure(
         record,
-        lambda name, opts: _fit_structure(record, model=name, progress=progress, defer_refit=True, **opts),
+        # the other hysteresis input only for the default class ("auto"): it doubles a class's refinements, and on the
+        # Preisach classes it changed 2 of 39 random plant-A cells, both for the worse (session 49: s233 1.10x -> 1.55x,
+        # s237 1.42x -> 2.59x through the class choice)
+        lambda name, opts: _fit_structure(
+            record, model=name, progress=progress, defer_refit=True, other_inputs=name == "auto", **opts
+        ),
         options,
         progress,
         median=median,
@@ -272,10 +277,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
             else:  # a class by name, or the default class on its sparse grid (the user's polynomial order kept)
                 model, extra = candidate_model(name)
                 grid = {**(more.get("grid") or {}), **extra.get("grid", {})}
-                # the other hysteresis input only for the default class: it doubles a class's refinements, and on the
-                # Preisach classes it changed 2 of 39 random plant-A cells, both for the worse (session 49: s233
-                # 1.10x -> 1.55x, s237 1.42x -> 2.59x through the class choice)
-                got = fit_one(model, {**more, **({"grid": grid} if grid else {}), "other_inputs": False})
+                got = fit_one(model, {**more, **({"grid": grid} if grid else {})})
             sec = time.perf_counter() - t0
         say(f"model auto: {name} fitted in {sec:.0f} s", progress)
         return got, sec
