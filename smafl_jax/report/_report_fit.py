@@ -566,7 +566,7 @@ def _fit_structure(
     """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names).
 
     ``other_inputs``: with validation samples, a cascade refines the hysteresis input the screening did not choose too
-    (`screen_start`); `choose_structure` turns it off for the classes other than the default one.
+    (`screen_start`); `fit_record` turns it off for the classes other than the default one.
 
     ``defer_refit``: return a `Candidate` after the split fit, whose ``finish()`` makes the whole-record refit and
     fit.json, so that `choose_structure` refits only the class it keeps.  ``early_stopping``: the split fit's joint
@@ -658,7 +658,7 @@ def _fit_structure(
 
     # The hysteresis input the screening's score did not choose (`screen_start(other_inputs=True)`) is refined as well
     # and the validation samples decide between the inputs, as between the memories (see `screen_start`).
-    other_inputs = screen_info.get("input_alternatives", []) if init is None else []
+    input_alts = screen_info.get("input_alternatives", []) if init is None else []
     input_choice = None
 
     def memory_candidates(s):
@@ -683,7 +683,7 @@ def _fit_structure(
 
     picks, memory_runs = [], []
     for j, s in enumerate(starts):
-        by_input = [[(label, *refine(m)) for label, m in memory_candidates(a)] for a in [s, *(other_inputs if j == 0 else [])]]
+        by_input = [[(label, *refine(m)) for label, m in memory_candidates(a)] for a in [s, *(input_alts if j == 0 else [])]]
         runs = [r for rs in by_input for r in rs]
         # The screened input's best run, unless the other input's best is lower on validation and fits the training
         # samples no worse (as `_prefers_default` keeps the default class): a flexible structure can win one validation
@@ -695,7 +695,8 @@ def _fit_structure(
             if val_mse(b[2]) < val_mse(pick[2]) and train_mse(b[2]) <= train_mse(bests[0][2]):
                 pick = b
         picks.append(pick)
-        memory_runs.append(by_input[bests.index(pick)])  # the pick's input: its memories (the spread compares them)
+        # the pick's input: its memories (the spread compares them); by identity, the runs hold arrays
+        memory_runs.append(next(rs for rs, b in zip(by_input, bests) if b is pick))
         if len(runs) > 1:
             # A fitted operator memory helps a record that starts on an unknown branch and hurts where the extra
             # freedom extrapolates (NiTi water steps: validation RMSE 6.8 -> 18.8); the validation samples decide.
