@@ -14,7 +14,7 @@ import pytest
 
 import smafl_jax as sj
 from smafl_jax.identify import SPARSE_SUFFIX, auto_candidates, candidate_model
-from smafl_jax.models import thermal_of
+from smafl_jax.models import hysteresis_class, thermal_of
 from smafl_jax.report import HYSTERESIS, fit_record
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -179,3 +179,20 @@ def test_sparse_grid_flag_reaches_the_fit_options():
     parse = build_parser("fit").parse_args
     assert record_fit_options(parse(["fit", "x.csv", "--sparse-grid"]), progress=False)["sparse_grid"] is True
     assert record_fit_options(parse(["fit", "x.csv"]), progress=False)["sparse_grid"] is False
+
+
+def test_model_auto_with_a_memory_rule_fits_the_classes_that_have_it(tmp_path):
+    # `--memory from_top` is an EUPI rule only: before session 51 `smafl fit --memory from_top` fitted the EUPI and then
+    # stopped with "unknown memory" on the Preisach classes
+    rec, _ = _record(tmp_path, 0, "play", "levels", 200)
+    without = [k for k in HYSTERESIS if "from_top" not in hysteresis_class(k).RULE_INITS]
+    assert without, "every class has the rule now: pick another EUPI-only rule for this test"
+    model, doc, _ = fit_record(rec, max_steps=0, grid=SMALL, orientation="rises", memory="from_top")
+    assert model.init == "from_top"
+    rows = (doc["settings"].get("structure_choice") or {}).get("candidates") or [{"structure": "eupi"}]
+    assert [r["structure"] for r in rows] == [k for k in HYSTERESIS if k not in without]
+    said = " ".join(doc["notes"])
+    assert f"memory 'from_top' is not a rule of {', '.join(without)}" in said
+    # a rule of no class: refused before any fit, with the default class's rules
+    with pytest.raises(sj.UserInputError, match=r"unknown memory 'sideways' for eupi.*from_top"):
+        fit_record(rec, max_steps=0, grid=SMALL, memory="sideways")

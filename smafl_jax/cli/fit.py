@@ -100,7 +100,8 @@ def add_parser(sub):
         default="auto",
         help="operators' state at t=0: fitted (each operator's place between its bounds is trained; one record), "
         "rule (the best of the rules descended, zero and from_top on the training samples), or one of those rules, "
-        "or auto (rule and fitted both refined, the validation samples choose)",
+        "or auto (rule and fitted both refined, the validation samples choose); with --model auto a named rule fits "
+        "only the classes that have it (from_top: the EUPI)",
     )
     p.add_argument(
         "--gain-prior",

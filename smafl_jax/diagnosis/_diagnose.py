@@ -107,9 +107,16 @@ def screened_base(base0, split, verbose=False):
 
     The residual -> effect loop is only as good as its base: a length sensor fitted with rising gains, or a
     cold-start record fitted from equilibrium, leaves structured residuals that some effect will "explain"
-    (issues 13 and 18).  The training segments are screened; the held-out samples choose the hysteresis input
-    when they lie on the training segments' own time axis (a time-block split).  ``table`` is None when the
-    base has no hysteresis part to screen.
+    (issues 13 and 18).  The training segments are screened; the held-out samples would choose the hysteresis input
+    (`screen_start`'s fold score) only where one training and one held-out segment share a time axis, which neither of
+    `make_split`'s splits gives (a time block trains on the record's first part alone, a branch split on several
+    segments), so the screening's training loss chooses.  ``table`` is None when the base has no hysteresis part to
+    screen.
+
+    Measured (session 51, `.notes/session51/base_probe.py`): screening a time-block split on the whole record's axis, the
+    fold score choosing and the other input refined too as `smafl fit` does, moved the base's held-out error on 18
+    records of experiments/indep_effects.py (12 clean) from a geometric mean of 2.22x to 2.37x the noise (better on 3,
+    worse on 5, e.g. a clean PWM record 1.52x -> 7.27x), so the training loss stays.
     """
     from ..identify._choose import screen_start
     from ..models._hysteresis import hysteresis_of
@@ -120,9 +127,8 @@ def screened_base(base0, split, verbose=False):
     weights = [s.mask.astype(float) for s in split.train]
     same_axis = len(split.train) == len(split.test) == 1 and len(split.train[0].u) == len(split.test[0].u)
     val = [split.test[0].mask.astype(float)] if same_axis else None
-    # the structure is chosen on the fold score as in `smafl fit` (`fold_sse`); measured: the same hysteresis input,
-    # memory rule and output sign as the held-out block alone chose on the 10 clean and 14 effect records (seeds 0, 1)
-    # of experiments/diagnose_independent.py, so its false-positive figures stand
+    # with held-out samples on the training axis (none of `make_split`'s splits) the structure would be chosen on the
+    # fold score as in `smafl fit` (`fold_sse`); otherwise on the training loss (see the docstring)
     model, table, _ = screen_start(base0, data, weights, val_weights=val, memory="rule")
     th = getattr(model, "thermal", None)
     _log(

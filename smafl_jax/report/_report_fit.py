@@ -265,6 +265,8 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
     """
     candidates, why = auto_candidates(record, options.get("grid"), sparse)
     drive = candidates[0] not in HYSTERESIS  # a drive voltage: the default cascade first, as `fit_one("auto")` fits it
+    candidates, left_out = _honouring_memory(candidates, record, options)
+    why += left_out
     more = dict(options)
     for k in ("thresholds", "tilts"):  # auto's defaults for the other classes: trained (a class without them ignores them)
         more[k] = True if more.get(k) is None else more[k]
@@ -308,13 +310,18 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
                     f"; its thermal time constant ({1.0 / fast[0]:.3g} s) is within one sample ({float(record.dt):.3g} s), "
                     "so the static hysteresis classes of the drive were fitted too and the held-out error chooses"
                 )
-                futures += _submit_longest_first(pool, job, HYSTERESIS, first=len(candidates))
-                candidates = (*candidates, *HYSTERESIS)
+                static, more_left = _honouring_memory(tuple(HYSTERESIS), record, options, keep_first=False)
+                why, left_out = why + more_left, left_out + more_left
+                futures += _submit_longest_first(pool, job, static, first=len(candidates))
+                candidates = (*candidates, *static)
         early = _finish_best_when_idle(pool, threads, futures, candidates, progress, candidates[0] if drive else None)
         runs = [(name, *f.result()) for name, f in zip(candidates, futures)]
         early = {i: f.result() for i, f in early.items()}  # inside the block: a refit started early ends before it is left
     if len(runs) == 1:
-        return runs[0][1].finish()
+        final, doc, extra = runs[0][1].finish()
+        if left_out:  # the classes a named memory rule left out: said even when one class is left to fit
+            doc["notes"] = [*doc.get("notes", []), f"model auto: {left_out[2:]}"]
+        return final, doc, extra
     scored = [r for r in runs if r[1].metrics["validation"] is not None]
     if not scored:  # no validation error (split none): nothing to compare on; the first (default) class is kept
         name, kept, _ = runs[0]
@@ -377,6 +384,39 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         *(n for n in doc["notes"] if not n.startswith(("model auto -> ", STATIC_ON_DRIVE))),
     ]
     return final, doc, extra
+
+
+def _honouring_memory(candidates, record, options, keep_first=True):
+    """``(candidates, reason)``: the `auto_candidates` labels whose hysteresis class has the operator-memory rule the user
+    named (``options["memory"]``, e.g. ``from_top``, a rule of the EUPI only), and ``"; ..."`` naming those left out
+    ("" when none is).
+
+    Why: ``smafl fit REC --memory from_top`` fitted the EUPI cascade for half a minute and then stopped with "unknown
+    memory" on the Preisach classes, which have no such rule.  The first (default) class is never left out
+    (``keep_first``): a rule it lacks is refused before any fit.
+    """
+    memory = options.get("memory", "auto")
+    if memory in ("auto", "fitted", "rule"):
+        return candidates, ""
+    rules = {c: getattr(hysteresis_of(_label_start(c, record, options)), "RULE_INITS", ()) for c in candidates}
+    if keep_first and memory not in rules[candidates[0]]:
+        raise UserInputError(
+            f"unknown memory {memory!r} for {candidates[0]}; choose auto, fitted, rule or one of {rules[candidates[0]]}"
+        )
+    kept = tuple(c for c in candidates if memory in rules[c])
+    left = [c for c in candidates if c not in kept]
+    if not left:
+        return kept, ""
+    return (
+        kept,
+        f"; memory {memory!r} is not a rule of {', '.join(left)}, so {'it was' if len(left) == 1 else 'they were'} not fitted",
+    )
+
+
+def _label_start(label, record, options):
+    """The untrained model of an `auto_candidates` label (its class and options), to ask its class what it supports."""
+    name, extra = candidate_model(label)
+    return build_model(name, record, **{**(options.get("grid") or {}), **extra.get("grid", {})})
 
 
 #: ``--model auto`` on a drive voltage keeps the default EUPI cascade (the paper's class) when another class wins the
