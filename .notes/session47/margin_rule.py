@@ -12,7 +12,7 @@ from collections import defaultdict
 
 import numpy as np
 
-MARGINS = (0.0, 0.1, 0.2, 0.3, 0.5, 1.0, 1e9)
+MARGINS = tuple(float(x) for x in os.environ.get("MARGINS", "0,0.1,0.2,0.3,0.5,1,1e9").split(","))
 gm = lambda x: float(np.exp(np.mean(np.log(x))))
 allrows = defaultdict(list)
 for path in sys.argv[1:]:
