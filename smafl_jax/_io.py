@@ -102,6 +102,10 @@ def model_to_dict(model: Any) -> dict[str, Any]:
     out = {"type": type(model).__name__}
     for f in dataclasses.fields(model):
         val = getattr(model, f.name)
+        if f.metadata.get("transient"):
+            if val is not None:  # a compile form (`Cascade.compile_form`) is never saved
+                raise UserInputError(f"{type(model).__name__}.{f.name}: save the model's user form, not its compile form")
+            continue
         if isinstance(val, eqx.Module):
             out[f.name] = model_to_dict(val)
         elif isinstance(val, (tuple, list)) and val and all(isinstance(v, eqx.Module) for v in val):

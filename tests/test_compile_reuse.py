@@ -10,6 +10,7 @@ from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import smafl_jax as sj
 from smafl_jax.identify import screen_start
@@ -51,3 +52,29 @@ def test_one_record_steady_start_is_screened_as_the_steady_rule():
     assert one.thermal.init == "steady" and two.thermal.init == "steady" and one.thermal.u0 is None
     np.testing.assert_allclose([row["loss"] for row in table2], [2 * row["loss"] for row in table1], rtol=1e-9)
     np.testing.assert_allclose(float(one.thermal.k1), float(two.thermal.k1), rtol=1e-9)
+
+
+def test_voltage_and_heat_cascades_share_their_compiled_programs():
+    """What a cascade's hysteresis sees is data inside the jitted entry points (`Cascade.compile_form`): the start
+    screening's voltage and heat candidates compiled every design, simulation and LM solve twice before (session 52:
+    13 of the 34 s a 30 000-sample `--model cascade` fit spent compiling)."""
+    u = 2.5 + 2.4 * np.sin(np.linspace(0.0, 9.0, 347))  # a length no other test uses: the first call compiles
+    plain = sj.Cascade.from_range(5.0, n_sym=4, n_alpha=2, n_asym=2)
+    volt, heat = (m.with_hysteresis(m.hysteresis.with_linear_weights(np.linspace(0.5, 1.5, m.hysteresis.linear_weights().size)))
+                  for m in (plain, plain.with_sees("heat", 5.0)))  # fmt: skip
+    with compiled_names() as names:
+        yv, yh = (np.asarray(sj.simulate(m, u, 0.2)) for m in (volt, heat))
+    assert sum("_simulate" in n for n in names) == 1, names
+    # each the output of its own static branch (op by op), and the two classes differ
+    np.testing.assert_allclose(yv, np.asarray(volt.simulate(u, 0.2)), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(yh, np.asarray(heat.simulate(u, 0.2)), rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(yv - yh)) > 0.1 * np.ptp(yv)
+    # a fit hands back what a user holds and saves: the static choice, no compile-form leaf
+    y = yh + 0.01 * np.random.default_rng(0).standard_normal(u.size)
+    fitted = sj.fit(heat, (u, y), 0.2, max_steps=5).model
+    assert fitted.sees == "heat" and fitted.heat_input is None
+    assert "heat_input" not in sj.model_to_dict(fitted)
+    with pytest.raises(sj.UserInputError, match="compile form"):
+        sj.model_to_dict(heat.compile_form())
+    with pytest.raises(ValueError, match="sees"):
+        sj.Cascade(thermal=volt.thermal, hysteresis=volt.hysteresis, sees="data")

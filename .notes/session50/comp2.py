@@ -19,6 +19,6 @@ r = indep_plant.make_record(7, drive="pwm", rate_hz=25, minutes=20.0, start="col
 p = Path(tempfile.mkdtemp()) / "rec.csv"
 indep_plant.write_csv(p, r)
 t0 = time.time()
-fit_record(sj.load_record(p), model=sys.argv[1] if len(sys.argv) > 1 else "auto")
+import json; fit_record(sj.load_record(p), model=sys.argv[1] if len(sys.argv) > 1 else "auto", **(json.loads(sys.argv[2]) if len(sys.argv) > 2 else {}))
 print("total", time.time() - t0, "compiles", sum(N.values()), "sec", sum(D.values()))
 for k in sorted(D, key=lambda k: -D[k])[:45]: print(f"{k[:90]:90s} {N[k]:4d} {D[k]:7.2f}")

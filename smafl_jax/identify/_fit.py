@@ -50,7 +50,15 @@ from .._progress import count_step, heartbeat, say, shown
 from ..models._constraints import POSITIVE_FLOOR, constrain, positive_mask, unconstrain
 from ..models._hysteresis import hysteresis_of, record_model, thermal_of
 from ..models._padding import pad_records
-from ..models._simulate import UNUSED_DT, check_sample_time, first_bad, uses_sample_time
+from ..models._simulate import (
+    UNUSED_DT,
+    check_sample_time,
+    compile_form,
+    compile_form_spec,
+    first_bad,
+    user_form,
+    uses_sample_time,
+)
 from . import varpro
 from ._gain_prior import check_gain_prior, map_gains
 from ._metrics import NOISE_FLOOR_WARN, noise_floor
@@ -311,8 +319,12 @@ def _stack_rows(blocks, data, weights):
 
 
 @eqx.filter_jit
-def _features(feats, model, u, dt):
+def _features_jit(feats, model, u, dt):
     return feats(model, u, dt)
+
+
+def _features(feats, model, u, dt):
+    return _features_jit(feats, compile_form(model), u, dt)
 
 
 def _check_finite_features(A, i, u):
@@ -470,7 +482,11 @@ def _residuals(model, args):
     return jnp.concatenate([jnp.sqrt(w) * (record_model(model, i).simulate(u, d) - y) for i, (u, y, d, w) in enumerate(args)])
 
 
-_residuals_jit = eqx.filter_jit(_residuals)
+_residuals_compiled = eqx.filter_jit(_residuals)
+
+
+def _residuals_jit(model, args):
+    return _residuals_compiled(compile_form(model), args)
 
 
 def _make_optx_solver(name, rtol, atol, stall=True):
@@ -585,11 +601,12 @@ def _refine(model, spec, args, solver, max_steps, rtol, atol, stall=True):
     if solver == "varpro":  # no operator gains to project out (a Joule lag, a model not linear in its weights): plain LM
         solver = "lm"
     if solver in ("lm", "gauss_newton", "bfgs"):
-        raw_train, static = eqx.partition(unconstrain(model), spec)
+        formed, formed_spec = compile_form_spec(model, spec)
+        raw_train, static = eqx.partition(unconstrain(formed), formed_spec)
         solver_ = _make_optx_solver(solver, rtol, atol, stall)
         solve = _solve_optx(solver_, raw_train, static, args, max_steps, count=persistent_cache_dir() is None)
         value, ok, n, loss, stalled = solve
-        fitted = constrain(eqx.combine(value, static))
+        fitted = user_form(constrain(eqx.combine(value, static)))
     elif solver in ("lbfgsb", "projected_gradient"):
         params, static = eqx.partition(model, spec)
         pos = eqx.filter(positive_mask(model), spec)

@@ -116,7 +116,9 @@ def batch_design(design: Callable, build: Callable, template: Any, values: jax.A
 
     ``design`` and ``build`` should be module-level functions: they are static, so equal shapes compile once.
     """
-    return _batch_design_jit(design, build, template, values, *args)
+    from ..models._simulate import compile_form
+
+    return _batch_design_jit(design, build, compile_form(template), values, *args)
 
 
 def grid_losses(

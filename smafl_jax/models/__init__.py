@@ -51,7 +51,7 @@ from ._preisach import (
 )
 from ._preisach_gauss import GaussianPreisach
 from ._range import branch_check, effective_range, hysteresis_values, range_check, trained_branches, trained_branches_of
-from ._simulate import simulate, simulate_batch
+from ._simulate import compile_form, simulate, simulate_batch, user_form
 from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, thermal_step
 
 __all__ = [
@@ -106,6 +106,8 @@ __all__ = [
     "estimate_initial_state",
     "simulate",
     "simulate_batch",
+    "compile_form",
+    "user_form",
     "bucket_length",
     "padded_call",
     # Documented helpers that tests and experiments use (issue 12: they import the sub-package API).

@@ -30,6 +30,8 @@ from ._thermal import JouleThermal, _safe_sqrt
 __all__ = ["SEES", "Cascade"]
 
 SEES = ("voltage", "heat")
+#: ``sees`` of a cascade in its compile form (`Cascade.compile_form`): the choice is the leaf ``heat_input``.
+COMPILE_SEES = "data"
 
 
 @register_model
@@ -52,10 +54,15 @@ class Cascade(eqx.Module):
     # a warm record's operators came up from cold, a cold one's are at rest), with its own thermal start
     # (`JouleThermal.with_record_starts`).  None: the hysteresis' own rule for every record.
     record_inits: tuple[str, ...] | None = eqx.field(static=True, default=None)
+    # Only in `compile_form` (sees = "data"): what the hysteresis sees as data, 1.0 heat or 0.0 voltage, so that the
+    # screening's voltage and heat candidates share their compiled programs; None in every model a user holds.
+    heat_input: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
 
     def __check_init__(self):
-        if self.sees not in SEES:
+        if self.sees not in SEES and not (self.sees == COMPILE_SEES and self.heat_input is not None):
             raise ValueError(f"Cascade sees must be one of {SEES}, got {self.sees!r}")
+        if self.heat_input is not None and self.sees != COMPILE_SEES:
+            raise ValueError(f"Cascade heat_input belongs to its compile form (sees={COMPILE_SEES!r}), got sees={self.sees!r}")
         if self.record_inits is not None:
             n = self.thermal.n_record_starts
             if n is None or len(self.record_inits) != n:
@@ -64,14 +71,21 @@ class Cascade(eqx.Module):
             if bad:
                 raise ValueError(f"Cascade record_inits must be rules of {self.hysteresis.RULE_INITS}, got {bad}")
 
+    def _seen(self, u_eff):
+        """What the hysteresis sees of an effective voltage: ``u_eff`` itself or its square (the heat)."""
+        if self.sees == COMPILE_SEES:
+            return jnp.where(self.heat_input > 0.5, u_eff * u_eff, u_eff)
+        return u_eff if self.sees == "voltage" else u_eff * u_eff
+
     def drive_of(self, theta):
         """Signal the hysteresis sees for thermal state ``theta``."""
-        u_eff = self.thermal.effective_voltage(theta)
-        return u_eff if self.sees == "voltage" else u_eff * u_eff
+        return self._seen(self.thermal.effective_voltage(theta))
 
     def drive_of_heat(self, q):
         """Signal the hysteresis sees for the thermal state in V^2 units ``q = theta k1 / k2`` (`ExtendedModel`'s state):
         ``sqrt(q)`` (``sees="voltage"``) or ``q`` itself (``sees="heat"``)."""
+        if self.sees == COMPILE_SEES:
+            return jnp.where(self.heat_input > 0.5, q, _safe_sqrt(q))
         return q if self.sees == "heat" else _safe_sqrt(q)
 
     def hysteresis_input(self, u, dt):
@@ -85,7 +99,35 @@ class Cascade(eqx.Module):
 
     def steady_drive(self, u):
         """Hysteresis input once a constant voltage ``u`` has been held (``u``, or ``u^2`` for ``sees="heat"``)."""
-        return u if self.sees == "voltage" else u * u
+        return self._seen(u)
+
+    def compile_form(self) -> Cascade:
+        """The same cascade with what its hysteresis sees as data (``heat_input``) instead of a static choice (and its
+        hysteresis in its own compile form, `AbstractHysteresis.compile_form`: the orientation as data).
+
+        Why: a static field is part of the tree structure that `jax.jit` keys its programs on, so the screening's
+        voltage and heat candidates compiled every design, simulation and LM solve twice (session 52: 13 s of the 34 s
+        compiling in `smafl fit --model cascade` on a 30 000-sample record).  The jitted entry points of the fit take
+        this form (`smafl_jax.models.compile_form`); `user_form` turns a fitted one back."""
+        if self.sees == COMPILE_SEES:
+            return self
+        return dataclasses.replace(
+            self,
+            hysteresis=self.hysteresis.compile_form(),
+            sees=COMPILE_SEES,
+            heat_input=jnp.asarray(1.0 if self.sees == "heat" else 0.0),
+        )
+
+    def user_form(self) -> Cascade:
+        """Inverse of `compile_form` (needs a concrete ``heat_input``)."""
+        if self.sees != COMPILE_SEES:
+            return self
+        return dataclasses.replace(
+            self,
+            hysteresis=self.hysteresis.user_form(),
+            sees="heat" if float(self.heat_input) > 0.5 else "voltage",
+            heat_input=None,
+        )
 
     def features(self, u, dt):
         """Design matrix of the hysteresis weights: ``simulate(u, dt) = features(u, dt) @ hysteresis.linear_weights()``."""
@@ -100,6 +142,8 @@ class Cascade(eqx.Module):
         the start screening (`smafl_jax.identify.screen_start`) tries both inputs."""
         if sees == self.sees:
             return self
+        if self.sees == COMPILE_SEES:
+            raise ValueError("with_sees needs the cascade's user form (Cascade.user_form)")
         fresh = self.hysteresis.with_range(0.0, u_max if sees == "voltage" else u_max * u_max)
         return dataclasses.replace(self, hysteresis=fresh, sees=sees)
 

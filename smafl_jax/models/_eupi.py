@@ -55,7 +55,7 @@ import numpy as np
 from .. import _config  # noqa: F401
 from .._io import register_model
 from ._constraints import parameter, positive
-from ._hysteresis import AbstractHysteresis, _orientation_line
+from ._hysteresis import AbstractHysteresis, _orientation_line, check_orientation
 from ._operators import MODEL_METHODS, consistent_initial_state, play, play_step, play_weighted
 
 __all__ = ["EUPI", "threshold_grid", "tilt_grid", "poly_columns"]
@@ -153,9 +153,12 @@ class EUPI(AbstractHysteresis):
     # mounted the other way). The operator gains stay >= 0 either way, so the sign lives here.
     orientation: int = eqx.field(static=True, default=1)
 
+    # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
+    # output signs share their compiled programs; None in every model a user holds.
+    sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+
     def __check_init__(self):
-        if self.orientation not in (1, -1):
-            raise ValueError(f"EUPI orientation must be +1 or -1, got {self.orientation!r}")
+        check_orientation(self, "EUPI")
         if self.init not in _INITS:
             raise ValueError(f"EUPI init must be one of {_INITS}, got {self.init!r}")
         if (self.init in _MEMORY_INITS) != (self.memory is not None):
@@ -345,7 +348,7 @@ class EUPI(AbstractHysteresis):
         s = self.normalise(x)
         r, a = self._bank()
         ops, _ = play_step(state, s, r, a)
-        sign = float(self.orientation)  # a length sensor reads the operator sum with a minus sign
+        sign = self.orientation_sign()  # a length sensor reads the operator sum with a minus sign
         powers = poly_columns(s, np.shape(self.poly)[0])
         row = jnp.concatenate([sign * s[None], sign * ops, powers, jnp.ones(1)])
         return ops, row @ self.linear_weights()
@@ -378,7 +381,7 @@ class EUPI(AbstractHysteresis):
         s = self.normalise(u)
         ops = self.operators(u, threshold_scale)
         powers = poly_columns(s, np.shape(self.poly)[0])  # (T, 0) for poly_order=1
-        signed = float(self.orientation) * jnp.concatenate([s[:, None], ops], axis=1)
+        signed = self.orientation_sign() * jnp.concatenate([s[:, None], ops], axis=1)
         return jnp.concatenate([signed, powers, jnp.ones_like(s)[:, None]], axis=1)
 
     def linear_weights(self):
@@ -422,7 +425,7 @@ class EUPI(AbstractHysteresis):
         w = jnp.concatenate([self.v, jnp.ravel(self.w)])
         ops = play_weighted(s, r, a, w, y0=self._initial_state(s[0], r, a), method=self.method)
         poly = poly_columns(s, np.shape(self.poly)[0]) @ self.poly
-        return float(self.orientation) * (self.gain * s + ops) + poly + self.offset
+        return self.orientation_sign() * (self.gain * s + ops) + poly + self.offset
 
 
 @eqx.filter_jit
@@ -434,4 +437,4 @@ def _memory_columns(model: EUPI, x, fractions):
     lo, up = s[0] - r, a * (s[0] + r)
     y0 = jnp.reshape(lo[None, :] + fractions * (up - lo)[None, :], (k * n,))
     ops = play(s, jnp.tile(r, k), jnp.tile(a, k), y0=y0, method=model.method)
-    return float(model.orientation) * jnp.moveaxis(jnp.reshape(ops, (s.shape[0], k, n)), 1, 0)
+    return model.orientation_sign() * jnp.moveaxis(jnp.reshape(ops, (s.shape[0], k, n)), 1, 0)

@@ -94,6 +94,29 @@ class AbstractHysteresis(eqx.Module):
     #: start already optimises with the weights solved exactly: the joint steps then cost time and gain nothing.
     refine_jointly = True
 
+    def orientation_sign(self):
+        """The orientation as the factor on the signed feature columns: ``float(orientation)`` in a user's model, the
+        leaf ``sign`` in its `compile_form`."""
+        sign = getattr(self, "sign", None)
+        return float(self.orientation) if sign is None else sign
+
+    def compile_form(self) -> AbstractHysteresis:
+        """The same model with its orientation as data (leaf ``sign``, ``orientation`` 0) instead of a static choice.
+
+        Why: static fields are part of the tree structure `jax.jit` keys its programs on, so the start screening's two
+        output signs compiled every design and simulation twice, and a record whose sign stayed open every LM solve
+        too.  The jitted entry points of the fit take this form (`smafl_jax.models.compile_form`).  A class without
+        a ``sign`` field keeps its static orientation."""
+        if getattr(self, "sign", True) is not None:  # no such field, or already the compile form
+            return self
+        return dataclasses.replace(self, orientation=0, sign=jnp.asarray(float(self.orientation)))
+
+    def user_form(self) -> AbstractHysteresis:
+        """Inverse of `compile_form` (needs a concrete ``sign``)."""
+        if getattr(self, "sign", None) is None:
+            return self
+        return dataclasses.replace(self, orientation=1 if float(self.sign) > 0 else -1, sign=None)
+
     def screening_grid(self) -> AbstractHysteresis:
         """A cheaper model of the same class and range that the start screening compares its candidates on (output
         sign, hysteresis input, memory rule, thermal start; `smafl_jax.identify.screen_start`); the chosen start is
@@ -274,6 +297,16 @@ class AbstractHysteresis(eqx.Module):
             f"non-negative ones non-zero), u_ref {float(self.u_ref):g}, u_span {float(self.u_span):g}, init {self.init}",
             _orientation_line(self.orientation),
         ]
+
+
+def check_orientation(model: AbstractHysteresis, name: str) -> None:
+    """``__check_init__`` part of every class with an ``orientation``: +1 / -1, or 0 with a ``sign`` leaf (its
+    `AbstractHysteresis.compile_form`) and only then."""
+    formed = model.orientation == 0 and model.sign is not None
+    if model.orientation not in (1, -1) and not formed:
+        raise ValueError(f"{name} orientation must be +1 or -1, got {model.orientation!r}")
+    if model.sign is not None and not formed:
+        raise ValueError(f"{name} sign belongs to its compile form (orientation 0), got orientation {model.orientation!r}")
 
 
 def _orientation_line(orientation) -> str:

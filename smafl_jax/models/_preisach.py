@@ -55,7 +55,7 @@ from .. import _config  # noqa: F401
 from .._io import register_model
 from .._progress import Steps, say
 from ._constraints import as_float_array, positive
-from ._hysteresis import AbstractHysteresis
+from ._hysteresis import AbstractHysteresis, check_orientation
 from ._padding import padded_call
 
 __all__ = [
@@ -135,9 +135,12 @@ class Preisach(AbstractHysteresis):
     # +1: output rises with the relay sum; -1: falls (length sensor). Default +1: models saved before load unchanged.
     orientation: int = eqx.field(static=True, default=1)
 
+    # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
+    # output signs share their compiled programs; None in every model a user holds.
+    sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+
     def __check_init__(self):
-        if self.orientation not in (1, -1):
-            raise ValueError(f"Preisach orientation must be +1 or -1, got {self.orientation!r}")
+        check_orientation(self, "Preisach")
         if self.init not in _INITS:
             raise ValueError(f"Preisach init must be one of {_INITS}, got {self.init!r}")
         nl = np.shape(self.levels)
@@ -239,7 +242,7 @@ class Preisach(AbstractHysteresis):
         a, b = self.thresholds()
         lo, hi = _switch_fractions(x, a, b, self.width)
         r = jnp.maximum(jnp.minimum(state, hi), lo)
-        o = float(self.orientation)
+        o = self.orientation_sign()
         y = o * (r @ self.w) + self.offset
         if self.linear:
             y = y + o * self.gain * self.normalise(x)
@@ -258,7 +261,7 @@ class Preisach(AbstractHysteresis):
     def features(self, u, dt=None):
         """Design matrix ``(T, p)``: columns ``[relays, s (if linear), 1]`` (linear in the weights; ``dt`` ignored)."""
         del dt
-        o = float(self.orientation)
+        o = self.orientation_sign()
         R = self._scan(u)
         s = self.normalise(u)
         cols = [o * R] + ([o * s[:, None]] if self.linear else []) + [jnp.ones_like(s)[:, None]]
@@ -287,7 +290,7 @@ class Preisach(AbstractHysteresis):
     def simulate(self, u, dt=None):
         """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
         del dt
-        o = float(self.orientation)
+        o = self.orientation_sign()
         y = o * self._scan(u, self.w) + self.offset
         if self.linear:
             y = y + o * self.gain * self.normalise(u)

@@ -38,7 +38,7 @@ import numpy as np
 from .. import _config  # noqa: F401
 from .._io import register_model
 from ._constraints import as_float_array, parameter, positive
-from ._hysteresis import AbstractHysteresis, _orientation_line
+from ._hysteresis import AbstractHysteresis, _orientation_line, check_orientation
 from ._preisach import Preisach, _switch_fractions, preisach_levels
 
 __all__ = ["GaussianPreisach"]
@@ -91,9 +91,12 @@ class GaussianPreisach(AbstractHysteresis):
     extend: float = eqx.field(static=True, default=0.0)
     orientation: int = eqx.field(static=True, default=1)
 
+    # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
+    # output signs share their compiled programs; None in every model a user holds.
+    sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+
     def __check_init__(self):
-        if self.orientation not in (1, -1):
-            raise ValueError(f"GaussianPreisach orientation must be +1 or -1, got {self.orientation!r}")
+        check_orientation(self, "GaussianPreisach")
         if self.init not in _INITS:
             raise ValueError(f"GaussianPreisach init must be one of {_INITS}, got {self.init!r}")
         nl = np.shape(self.levels)
@@ -227,7 +230,7 @@ class GaussianPreisach(AbstractHysteresis):
         return jnp.ones_like(a) if self.init == "descended" else jnp.zeros_like(a)
 
     def _read(self, r, x, rho):
-        o = float(self.orientation)
+        o = self.orientation_sign()
         return o * self.scale * (r @ rho) + self.gain * self.normalise(x) + self.offset
 
     def step(self, state, x):
@@ -260,7 +263,7 @@ class GaussianPreisach(AbstractHysteresis):
         """Design matrix ``(T, 3)``: ``[o * density-weighted relay sum, s, 1]`` (the orientation signs the non-negative
         column only, as in every hysteresis model)."""
         del dt
-        o = float(self.orientation)
+        o = self.orientation_sign()
         f = self._relay_sum(u)
         return jnp.stack([o * f, self.normalise(u), jnp.ones_like(f)], axis=1)
 
@@ -283,7 +286,7 @@ class GaussianPreisach(AbstractHysteresis):
         return self._read_all(u)
 
     def _read_all(self, u):
-        o = float(self.orientation)
+        o = self.orientation_sign()
         return o * self.scale * self._relay_sum(u) + self.gain * self.normalise(u) + self.offset
 
     def describe(self):

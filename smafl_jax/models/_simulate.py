@@ -105,6 +105,30 @@ def scalar_leaves_as_arrays(tree: Any) -> Any:
     return jax.tree_util.tree_map(convert, tree)
 
 
+def compile_form(model: Any) -> Any:
+    """``model`` in the form the jitted entry points take: structural choices that change no array shape held as data
+    (`Cascade.compile_form`), so that models differing only in them share compiled programs; other models unchanged."""
+    form = getattr(model, "compile_form", None)
+    return model if form is None else form()
+
+
+def user_form(model: Any) -> Any:
+    """Inverse of `compile_form` (concrete models only): what a user holds, saves and reads."""
+    form = getattr(model, "user_form", None)
+    return model if form is None else form()
+
+
+def compile_form_spec(model: Any, spec: Any) -> tuple[Any, Any]:
+    """``(compile_form(model), spec)`` with ``spec`` (a trainable mask of ``model``) matched to it: the leaves the
+    compile form adds are never trained."""
+    formed = compile_form(model)
+    if formed is model:
+        return model, spec
+    mask = dict(jax.tree_util.tree_flatten_with_path(spec)[0])
+    paths, treedef = jax.tree_util.tree_flatten_with_path(formed)
+    return formed, jax.tree_util.tree_unflatten(treedef, [mask.get(path, False) for path, _ in paths])
+
+
 def _as_inputs(model, u, dt, ndim, call):
     name = "u" if ndim == 1 else "u (a batch of records)"
     shape_hint = "(one sample per time step)" if ndim == 1 else "(records, samples)"
@@ -160,10 +184,10 @@ def simulate(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> ja
     its own is rate-independent and may omit it.  Bad concrete input raises `UserInputError` before compiling.
     """
     u, dt = _as_inputs(model, u, dt, 1, "sj.simulate(model, u, 0.05)")
-    return _simulate(scalar_leaves_as_arrays(model), u, dt)
+    return _simulate(compile_form(scalar_leaves_as_arrays(model)), u, dt)
 
 
 def simulate_batch(model: eqx.Module, u: ArrayLike, dt: ArrayLike | None = None) -> jax.Array:
     """Model outputs ``(B, T)`` for a batch of input records ``(B, T)`` (one `vmap`, one compile); ``dt`` as in `simulate`."""
     u, dt = _as_inputs(model, u, dt, 2, "sj.simulate_batch(model, u, 0.05)")
-    return _simulate_batch(scalar_leaves_as_arrays(model), u, dt)
+    return _simulate_batch(compile_form(scalar_leaves_as_arrays(model)), u, dt)
