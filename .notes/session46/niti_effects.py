@@ -27,7 +27,7 @@ for i, rec in enumerate(recs):
         return float(np.sqrt(np.mean((y[k] - rec.y[k]) ** 2))) if np.all(np.isfinite(y)) else float("nan")
     row["base"] = score(base)
     for name in effects:
-        m, inf = fit_extended(base, [name], split)
+        m, inf = fit_extended(base, name.split("+"), split)  # "a+b": two effects at once (session 52)
         row[name] = score(m)
         row[name + "_params"] = {e.name: {k: float(np.asarray(v)) for k, v in vars(e).items() if np.ndim(v) == 0 and not isinstance(v, str)} for e in m.effects}
     bl = baselines_doc(train, [r.measured for r in train], [rec], [rec.measured], squared=False, model_heldout=None)
