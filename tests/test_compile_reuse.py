@@ -5,6 +5,7 @@
   so all thermal starts of one structure share a program; the losses must be those of the steady rule itself.
 """
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -78,3 +79,21 @@ def test_voltage_and_heat_cascades_share_their_compiled_programs():
         sj.model_to_dict(heat.compile_form())
     with pytest.raises(ValueError, match="sees"):
         sj.Cascade(thermal=volt.thermal, hysteresis=volt.hysteresis, sees="data")
+
+
+def test_both_output_signs_share_their_compiled_programs():
+    """The output orientation is data inside the jitted entry points (`AbstractHysteresis.compile_form`): the start
+    screening's two signs, and the refinement of a record whose sign stays open, compiled everything twice before."""
+    u = 0.5 + 0.45 * np.sin(np.linspace(0.0, 11.0, 353))  # a length no other test uses
+    up = sj.EUPI.from_range(0.0, 1.0, n_sym=3, n_alpha=2, n_asym=2)
+    up = up.with_linear_weights(np.linspace(0.5, 1.5, up.linear_weights().size))
+    down = dataclasses.replace(up, orientation=-1)
+    with compiled_names() as names:
+        y_up, y_down = (np.asarray(sj.simulate(m, u)) for m in (up, down))
+    assert sum("_simulate" in n for n in names) == 1, names
+    np.testing.assert_allclose(y_up, np.asarray(up.simulate(u)), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(y_down, np.asarray(down.simulate(u)), rtol=1e-12, atol=1e-12)
+    fitted = sj.fit(down, (u, y_down + 0.01 * np.random.default_rng(1).standard_normal(u.size)), max_steps=5).model
+    assert fitted.orientation == -1 and fitted.sign is None
+    with pytest.raises(ValueError, match="orientation"):
+        dataclasses.replace(up, orientation=0)  # 0 only with the compile form's sign leaf
