@@ -33,6 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import UserInputError
+from ..models._simulate import compile_form
 from .linear import LinearSolution, solve
 
 __all__ = [
@@ -116,8 +117,6 @@ def batch_design(design: Callable, build: Callable, template: Any, values: jax.A
 
     ``design`` and ``build`` should be module-level functions: they are static, so equal shapes compile once.
     """
-    from ..models._simulate import compile_form
-
     return _batch_design_jit(design, build, compile_form(template), values, *args)
 
 
