@@ -123,31 +123,16 @@ def _error_text(exc):
 
 
 def _blas_threads():
-    """One BLAS thread for the command, unless the user set ``OPENBLAS_NUM_THREADS`` themselves.
+    """One BLAS thread for the command, unless the user set ``OPENBLAS_NUM_THREADS`` themselves (`smafl_jax._blas`).
 
-    The linear algebra here is small (Preisach grids of <= 631 columns, BVLS designs), and OpenBLAS's
-    spinning worker threads compete with JAX's and with each other on a small machine: measured on the
-    2-core machine under load, one Preisach cross-validation took 75 s with OpenBLAS's default threads
-    and 8 s with one; `smafl fit datasets/steps.csv` 45 s -> 35 s.  The variable acts when NumPy is
-    not loaded yet (the program itself); threadpoolctl, when installed, limits already loaded libraries
-    (``main`` called in-process).
+    The variable acts when NumPy is not loaded yet (the program itself); threadpoolctl limits already loaded libraries
+    (``main`` called in-process).  Measured on the 2-core machine under load: one Preisach cross-validation took 75 s
+    with OpenBLAS's default threads and 8 s with one; `smafl fit datasets/steps.csv` 45 s -> 35 s.
     """
-    global _BLAS_ENV_SET
-    if "OPENBLAS_NUM_THREADS" in os.environ and not _BLAS_ENV_SET:
-        return contextlib.nullcontext()  # the user's choice
-    os.environ["OPENBLAS_NUM_THREADS"] = "1"  # read by each BLAS library when it loads
-    _BLAS_ENV_SET = True
-    if "numpy" not in sys.modules:
-        return contextlib.nullcontext()
-    try:
-        import scipy.linalg  # noqa: F401  (load SciPy's own OpenBLAS now, so that the limit reaches it too)
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    from .._blas import one_blas_thread, set_blas_env
 
-
-_BLAS_ENV_SET = False
+    set_blas_env()
+    return one_blas_thread() if "numpy" in sys.modules else contextlib.nullcontext()
 
 
 #: Seconds an interrupted command has to reach its own exit path before the watchdog ends it.

@@ -59,6 +59,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import _config  # noqa: F401
+from .._blas import blas_limited
 from .._compile_cache import release_if_needed
 from .._errors import UserInputError
 from .._progress import LOGGER as PROGRESS
@@ -1337,6 +1338,7 @@ def _metrics_pair(model, split):
     return tr, te
 
 
+@blas_limited
 def diagnose(
     record,
     *,

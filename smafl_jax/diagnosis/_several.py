@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from .._blas import blas_limited
 from .._errors import UserInputError
 
 __all__ = ["RecordsDiagnosis", "diagnose_records", "agreement", "AGREEMENT_RULE"]
@@ -82,6 +83,7 @@ def _row(rec, folder, diag) -> dict[str, Any]:
     }
 
 
+@blas_limited
 def diagnose_records(records, out, **kwargs) -> RecordsDiagnosis:
     """Diagnose each of ``records`` (`Record`s of one rig, same columns) with `diagnose` (``kwargs`` are its settings),
     write each record's outputs to ``out/<record stem>/`` and the set's ``diagnosis.json`` and ``report.md`` to ``out``.

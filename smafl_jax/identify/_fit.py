@@ -44,6 +44,7 @@ import optimistix as optx
 from jax.typing import ArrayLike
 
 from .. import _config  # noqa: F401
+from .._blas import blas_limited
 from .._compile_cache import persistent_cache_dir, release_if_needed
 from .._errors import UserInputError
 from .._progress import count_step, heartbeat, say, shown
@@ -907,6 +908,7 @@ def _no_gain_words(what: str, solved: bool, poor: float | None, long: bool) -> s
     return words + "; the start state and the structure are as given (smafl_jax.report.fit_record screens them)"
 
 
+@blas_limited
 def fit_many(
     model: eqx.Module,
     datasets: Iterable[Any],

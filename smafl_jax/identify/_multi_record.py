@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .._blas import blas_limited
 from .._errors import UserInputError
 from .._progress import format_seconds
 from .._progress import say as progress_line
@@ -422,6 +423,7 @@ def _unique_names(records) -> list[str]:
     return [f"{n}#{i}" if seen[n] > 1 else n for i, n in enumerate(names)]
 
 
+@blas_limited
 def fit_records(
     records: Any, *, model: str = "auto", progress: bool = False, **fit_record_kwargs: Any
 ) -> tuple[Any, dict[str, Any], dict[str, Any]]:

@@ -18,6 +18,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .._blas import blas_limited
 from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
 from .._progress import say, shown, tagged
@@ -157,6 +158,7 @@ def joint_steps(start, max_steps, notes):
     return 0
 
 
+@blas_limited
 def fit_record(record, *, model="auto", progress=False, **options):
     """Fit one record; returns ``(fitted_model, doc, masks)`` with ``doc`` the fit.json content.
 
@@ -241,6 +243,7 @@ def _median_doc(record, runs, kept, final, doc, extra, progress, refitted=None):
     }
 
 
+@blas_limited
 def choose_structure(record, fit_one, options, progress, validation="validation", median=False, sparse=False):
     """``--model auto``: fit every structure of `auto_candidates` with ``fit_one(name, options) -> Candidate`` and keep
     the lowest validation RMSE (``Candidate.metrics["validation"]``; on a drive voltage the default cascade when
