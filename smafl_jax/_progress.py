@@ -25,7 +25,18 @@ import sys
 import threading
 import time
 
-__all__ = ["LOGGER", "Steps", "heartbeat", "count_step", "say", "shown", "shown_on_stderr", "format_seconds", "tagged"]
+__all__ = [
+    "LOGGER",
+    "Steps",
+    "heartbeat",
+    "count_step",
+    "say",
+    "shown",
+    "shown_on_stderr",
+    "format_seconds",
+    "tagged",
+    "current_tag",
+]
 
 LOGGER = logging.getLogger("smafl_jax.progress")
 
@@ -61,6 +72,11 @@ def tagged(tag: str):
             _TAGS.pop(ident, None)
         else:
             _TAGS[ident] = before
+
+
+def current_tag() -> str | None:
+    """The calling thread's `tagged` tag (None outside a block): work it hands to another thread keeps the prefix."""
+    return _TAGS.get(threading.get_ident())
 
 
 #: Least seconds between two progress lines of one phase (the last step is always reported).

@@ -159,3 +159,51 @@ def test_step_counts_and_lines_stay_with_their_thread(caplog):
     assert "[a] a done" in lines and "[b] b done" in lines
     _progress.say("untagged")
     assert not _progress._TAGS  # nothing left behind
+
+
+def test_a_rejected_refinement_refits_on_a_side_thread_with_the_same_result(tmp_path, monkeypatch):
+    """The default class's whole-record refit of a refinement rejected on validation starts before the split fit's
+    polish, on a thread of its own (`_fit_structure(early_refit=True)`); the refit is the one made after it."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import indep_plant
+
+    r = indep_plant.make_record(3, drive="multisine", rate_hz=10, minutes=3.0, start="cold")
+    path = tmp_path / "rec.csv"
+    indep_plant.write_csv(path, r)
+    rec = sj.load_record(path)
+    monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: min(k, 2))
+    side = []
+    on_side = _report_fit._on_side_thread
+    monkeypatch.setattr(_report_fit, "_on_side_thread", lambda fn, *a: side.append(fn) or on_side(fn, *a))
+    opts = dict(model="auto", defer_refit=True, grid=SMALL, thresholds=True, tilts=True)
+    got = {}
+    for early in (False, True):
+        cand = _report_fit._fit_structure(rec, early_refit=early, **opts)
+        assert (cand.pending is not None) == early
+        model, doc, _ = cand.finish()
+        assert doc["solver"]["refinement"] == "rejected"  # the case the side thread is for
+        got[early] = (sj.model_to_dict(model), doc["metrics"], doc["notes"])
+    assert len(side) == 1
+    assert got[True] == got[False]
+
+
+def test_choose_structure_waits_for_a_side_refit_of_a_class_it_does_not_keep(tmp_path, monkeypatch):
+    rec = _voltage_record(tmp_path, 6, 400, 0.05)
+    monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: min(k, 2))
+    fit_one = _fake_candidates(rec, [], threading.Barrier(2))
+    ended = threading.Event()
+
+    def slow_refit():
+        time.sleep(0.5)
+        ended.set()
+
+    def with_pending(name, options):
+        cand = fit_one(name, options)
+        if name != "auto":
+            return cand
+        pending = _report_fit._on_side_thread(slow_refit)
+        return cand._replace(pending=pending)
+
+    _, doc, _ = _report_fit.choose_structure(rec, with_pending, {}, progress=False)
+    assert doc["settings"]["structure_choice"]["chosen"] == "cascade-preisach"  # the default class is not kept
+    assert ended.is_set()  # and its side refit had ended before the choice returned

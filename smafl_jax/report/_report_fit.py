@@ -21,7 +21,7 @@ import numpy as np
 from .._blas import blas_limited
 from .._errors import UserInputError
 from .._io import atomic_savefig, atomic_write_json, atomic_write_text, model_from_dict, model_to_dict
-from .._progress import say, shown, tagged
+from .._progress import current_tag, say, shown, tagged
 from ..data.split import COVERAGE_WARN, branch_coverage
 from ..identify._baselines import is_voltage
 from ..identify._choose import (
@@ -69,6 +69,9 @@ class Candidate(NamedTuple):
     #: fraction of the validation samples on branches of the candidate's hysteresis input that its training part visits
     #: (`branch_coverage`); None when not measured (no validation samples, several records)
     coverage: float | None = None
+    #: the whole-record refit already running on a side thread (`_fit_structure`'s ``early_refit``), else None:
+    #: `choose_structure` waits for it whether or not the candidate is kept (no fit goes on behind the caller's back)
+    pending: concurrent.futures.Future | None = None
 
     @classmethod
     def done(cls, result: tuple[Any, dict[str, Any], Any]) -> Candidate:
@@ -195,7 +198,13 @@ def fit_record(record, *, model="auto", progress=False, **options):
         # Preisach classes it changed 2 of 39 random plant-A cells, both for the worse (session 49: s233 1.10x -> 1.55x,
         # s237 1.42x -> 2.59x through the class choice)
         lambda name, opts: _fit_structure(
-            record, model=name, progress=progress, defer_refit=True, other_inputs=name == "auto", **opts
+            record,
+            model=name,
+            progress=progress,
+            defer_refit=True,
+            other_inputs=name == "auto",
+            early_refit=name == "auto",
+            **opts,
         ),
         options,
         progress,
@@ -320,6 +329,7 @@ def choose_structure(record, fit_one, options, progress, validation="validation"
         early = _finish_best_when_idle(pool, threads, futures, candidates, progress, candidates[0] if drive else None)
         runs = [(name, *f.result()) for name, f in zip(candidates, futures)]
         early = {i: f.result() for i, f in early.items()}  # inside the block: a refit started early ends before it is left
+        concurrent.futures.wait([c.pending for _, c, _ in runs if c.pending is not None])
     if len(runs) == 1:
         final, doc, extra = runs[0][1].finish()
         if left_out:  # the classes a named memory rule left out: said even when one class is left to fit
@@ -568,6 +578,23 @@ class _Pool:
         return False
 
 
+def _on_side_thread(fn, *args) -> concurrent.futures.Future:
+    """``fn(*args)`` started on a thread of its own, in a copy of the caller's context and with its progress tag."""
+    tag, ctx = current_tag(), contextvars.copy_context()
+
+    def run():
+        if tag is None:
+            return fn(*args)
+        with tagged(tag):
+            return fn(*args)
+
+    pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="smafl-side")
+    try:
+        return pool.submit(ctx.run, run)
+    finally:
+        pool.shutdown(wait=False)  # the thread ends with its one call
+
+
 def _rmse_or_inf(m):
     v = float(m["rmse"])
     return v if np.isfinite(v) else np.inf
@@ -605,6 +632,7 @@ def _fit_structure(
     defer_refit=False,
     early_stopping=False,
     other_inputs=True,
+    early_refit=False,
 ):
     """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names).
 
@@ -613,7 +641,9 @@ def _fit_structure(
 
     ``defer_refit``: return a `Candidate` after the split fit, whose ``finish()`` makes the whole-record refit and
     fit.json, so that `choose_structure` refits only the class it keeps.  ``early_stopping``: the split fit's joint
-    refinement stops on the validation samples (`_refine_early_stopped`; off by default: measured mixed, see there)."""
+    refinement stops on the validation samples (`_refine_early_stopped`; off by default: measured mixed, see there).
+    ``early_refit`` (with ``defer_refit``; `fit_record` sets it for the default class): when the split refinement was
+    rejected, the whole-record refit starts on a side thread before the split fit's polish (`Candidate.pending`)."""
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
     if solver not in SOLVERS:
@@ -822,13 +852,25 @@ def _fit_structure(
     memory_used = label
     if note:
         notes.append(note)
-    spread = _memory_spread(memory_runs[chosen], rec, record.y[train], notes) if len(memory_runs[chosen]) > 1 else None
-    if view_info and max_steps > 0:
-        res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress, gain_prior))
-    yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
+    early = None
+    if early_refit and do_refit and refinement != "kept" and chosen not in finals and candidate_threads(2) > 1:
+        # A split refinement rejected on validation: the whole-record refit screens afresh on every sample and takes
+        # only the split fit's structure (output sign, hysteresis input, memory rule), which the polish below does not
+        # change, so it starts now on a core of its own (the same refit, bit for bit).  Measured on the benchmark record
+        # (2 cores): the default cascade's polish and its refit ran one after the other, the other core idle.
+        early = _on_side_thread(deploy, (label, res, yhat, refinement))
+    try:
+        spread = _memory_spread(memory_runs[chosen], rec, record.y[train], notes) if len(memory_runs[chosen]) > 1 else None
+        if view_info and max_steps > 0:
+            res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress, gain_prior))
+        yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
+        if not np.all(np.isfinite(yhat)):
+            raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
+    except BaseException:
+        if early is not None:  # an error or an interrupt: no refit goes on behind the caller's back
+            early.cancel() or concurrent.futures.wait([early])
+        raise
     seconds = time.perf_counter() - t0
-    if not np.all(np.isfinite(yhat)):
-        raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
     mets = {
         "train": metrics(record.y[train], yhat[train]),
         "validation": metrics(record.y[val], yhat[val]) if val.any() else None,
@@ -846,7 +888,10 @@ def _fit_structure(
             # The split chose the structure (orientation, hysteresis input, refinement or not) and measured
             # the held-out error; the model a user deploys is then fitted on every sample with those choices.
             # On independent cold-start records a fit starved of the last 30 % extrapolated 10-50x worse.
-            final = finals[chosen] if chosen in finals else deploy((label, res, yhat, refinement))
+            if chosen in finals:
+                final = finals[chosen]
+            else:
+                final = early.result() if early is not None else deploy((label, res, yhat, refinement))
             y_all = np.asarray(simulate(final, record.u, record.dt))
             mets["whole_record"] = _whole_record(record, y_all)
             notes.append(
@@ -940,7 +985,8 @@ def _fit_structure(
 
     if defer_refit:
         profile_k1 = ((res.info or {}).get("profile") or screen_info.get("profile") or {}).get("k1")
-        return Candidate(split_model, mets, profile_k1, finish, (split_info.get("coverage") or {}).get("covered_fraction"))
+        covered = (split_info.get("coverage") or {}).get("covered_fraction")
+        return Candidate(split_model, mets, profile_k1, finish, covered, early)
     return finish()
 
 
