@@ -18,7 +18,8 @@ joint-refinement solver (`smafl fit --solver`); run once with each in separate p
 
 JIT compilation is always paid here: `fit_record` does not turn on the on-disk cache of compiled programs that the
 `smafl` command line uses (`SMAFL_COMPILE_CACHE`; session 26: the CLI on this record 96.6 s with an empty cache, 64.2 s
-warm).  ``JAX_COMPILATION_CACHE_DIR=DIR`` in the environment measures the warm case.
+warm).  ``JAX_COMPILATION_CACHE_DIR=DIR`` in the environment measures the warm case.  The row also gives each fit's
+process CPU seconds (``cpu_seconds``).
 """
 
 from __future__ import annotations
@@ -58,14 +59,17 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None):
         path = Path(tmp) / "rec.csv"
         indep_plant.write_csv(path, r)
         rec = sj.load_record(path)
-        seconds = {}
+        seconds, cpu = {}, {}
         default = {} if solver is None else {"solver": solver}
         for label, opts in (("default", default), ("profiled only", {"max_steps": 0})):
             progress(f"default_fit: {label} on {len(rec)} samples")
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             _, doc, _ = fit_record(rec, **opts)
-            seconds[label] = time.perf_counter() - t0
-            progress(f"default_fit: {label}: {seconds[label]:.1f} s, train RMSE {doc['metrics']['train']['rmse']:.4g}")
+            seconds[label], cpu[label] = time.perf_counter() - t0, time.process_time() - c0
+            progress(
+                f"default_fit: {label}: {seconds[label]:.1f} s ({cpu[label]:.1f} s of CPU), "
+                f"train RMSE {doc['metrics']['train']['rmse']:.4g}"
+            )
     return [
         row(
             f"default smafl fit, {len(rec)} samples (goal < 60 s)"
@@ -76,6 +80,9 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None):
             "s",
             note=f"independent {drive} record, {minutes:g} min at {rate_hz:g} Hz, cold start; JIT compilation included",
             n_samples=len(rec),
+            # CPU seconds of the process (every thread): on a shared machine whose speed drifts, the same code's wall
+            # time moved by 25 % within an hour (session 53) while its work did not; this separates the two
+            cpu_seconds={k: round(v, 2) for k, v in cpu.items()},
         )
     ]
 

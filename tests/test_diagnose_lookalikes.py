@@ -84,3 +84,28 @@ def test_time_left_counts_only_candidates_that_run_the_calibrated_test(monkeypat
     monkeypatch.setattr(_diagnose, "Steps", Capture)
     _select(monkeypatch, {"creep": 0.50, "input_warp": 0.90, "output_lag": 0.97, "delay": 0.99})
     assert seen["diagnose: calibrated test"] == [1.0, 1.0, 0.01, 0.01]  # gains 50 %, 10 %, 3 %, 1 % vs min_gain 5 %
+
+
+def test_a_base_at_the_noise_floor_tests_no_effect(monkeypatch):
+    """Issue 13: a base whose held-out RMSE is within `BASE_AT_FLOOR` noise SDs leaves nothing for an effect to explain;
+    the calibrated test (folds, null records) is not run and nothing is selected, however much a candidate gains."""
+
+    def never(*a, **k):
+        raise AssertionError("the calibrated test ran on a base at the noise floor")
+
+    monkeypatch.setattr(_diagnose, "calibration_gates", never)
+    cands = [{"name": "creep", "fitted": True, "heldout_rmse": 0.95}]
+    cal = {**_diagnose.CALIBRATED_DEFAULTS, "seed": 0}
+    kw = dict(min_gain=0.05, max_effects=1, cal=cal, holdout_residue=2, verbose=False)
+    fitted = {"creep": ("creep", 0.95, None)}
+    out = _diagnose._select_calibrated(None, None, "base", {"rmse": 1.0}, cands, fitted, noise_sd=1.0 / 1.19, **kw)
+    assert out == ([], "base", [], [])
+    assert cands[0]["accepted"] is False and "noise floor" in cands[0]["calibration"]["reason"]
+    _diagnose._decisions(cands, out[0], out[2], "calibrated", out[3])
+    assert cands[0]["decision"].startswith("rejected: the base model's held-out RMSE is 1.19x")
+    # above the floor (1.3x) the test runs as before
+    monkeypatch.setattr(_diagnose, "calibration_gates", lambda *a, **k: {"accepted": True})
+    monkeypatch.setattr(_diagnose, "_held", lambda m, split: {"rmse": 0.95})
+    cands = [{"name": "creep", "fitted": True, "heldout_rmse": 0.95}]
+    out = _diagnose._select_calibrated(None, None, "base", {"rmse": 1.0}, cands, fitted, noise_sd=1.0 / 1.3, **kw)
+    assert out[0] == ["creep"]
