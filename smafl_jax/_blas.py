@@ -4,7 +4,8 @@ Why: the linear algebra of a fit is small (BVLS designs of a few dozen columns, 
 fit's own work runs on JAX's threads and on one thread per candidate class (`smafl_jax.report.choose_structure`).
 OpenBLAS's worker threads spin while they wait and take the cores those threads need: on the 2-core machine the
 benchmark fit of a 30 000-sample record took 107 s through the Python API with OpenBLAS's default threads and 61 s with
-one, the same fit to the last digit (session 53; the command line has limited them since issue 16).
+one, the same fit to the last digit (session 53; the command line has limited them since issue 16).  The public entry
+points that fit carry `blas_limited`, `sj.fit` included.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -33,17 +35,44 @@ def set_blas_env() -> None:
         _SET_BY_US["env"] = True
 
 
-def one_blas_thread() -> contextlib.AbstractContextManager:
-    """Context: every loaded BLAS library on one thread (threadpoolctl), restored on exit; nothing when the user set
-    ``OPENBLAS_NUM_THREADS`` or threadpoolctl is missing.  The limit is process-wide while it lasts."""
-    if user_chose_blas_threads():
-        return contextlib.nullcontext()
+# Entries into `one_blas_thread` across all threads: the first applies the limit, the last restores it.  Why a count:
+# the limit is process-wide, and `sj.fit` runs inside the candidate threads of `choose_structure`, so each thread
+# restoring "its" original setting on exit would hand BLAS its spinning workers back while another still fits.  (The
+# OpenBLAS of SciPy's wheels, 0.3.31, also ignores a thread count set from any thread but the main one once the main
+# thread has set one: the public entry points are normally entered there, which is where the limit takes effect.)
+_DEPTH = {"n": 0, "limiter": None}
+_LOCK = threading.Lock()
+
+
+def _limit_now():
     try:
         import scipy.linalg  # noqa: F401  (load SciPy's own OpenBLAS now, so that the limit reaches it too)
         from threadpoolctl import threadpool_limits
     except ImportError:
-        return contextlib.nullcontext()
+        return None
     return threadpool_limits(limits=1, user_api="blas")
+
+
+@contextlib.contextmanager
+def one_blas_thread():
+    """Context: every loaded BLAS library on one thread (threadpoolctl) from the first entry of any thread to the last
+    exit, then restored; nothing when the user set ``OPENBLAS_NUM_THREADS`` or threadpoolctl is missing.  The limit is
+    process-wide while it lasts."""
+    if user_chose_blas_threads():
+        yield
+        return
+    with _LOCK:
+        if _DEPTH["n"] == 0:
+            _DEPTH["limiter"] = _limit_now()
+        _DEPTH["n"] += 1
+    try:
+        yield
+    finally:
+        with _LOCK:
+            _DEPTH["n"] -= 1
+            if _DEPTH["n"] == 0 and _DEPTH["limiter"] is not None:
+                _DEPTH["limiter"].restore_original_limits()
+                _DEPTH["limiter"] = None
 
 
 def blas_limited(fn: F) -> F:

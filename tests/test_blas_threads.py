@@ -29,6 +29,46 @@ def test_blas_limited_holds_one_thread_inside_and_restores_outside(monkeypatch):
     assert after == {2}
 
 
+def test_the_limit_holds_until_the_last_thread_leaves(monkeypatch):
+    """`sj.fit` runs inside the candidate threads: one thread leaving must not restore BLAS's threads while another
+    still fits (the limit is process-wide).  A stand-in limiter records when the limit is applied and restored (this
+    OpenBLAS ignores a thread count set from any thread but the main one once the main one has set it, so the real
+    library cannot show the order here)."""
+    import threading
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setitem(_blas._SET_BY_US, "env", False)
+    log = []
+
+    class Limiter:
+        def restore_original_limits(self):
+            log.append("restored")
+
+    monkeypatch.setattr(_blas, "_limit_now", lambda: log.append("limited") or Limiter())
+    a_in, b_in, a_out = (threading.Event() for _ in range(3))
+
+    def a():
+        with _blas.one_blas_thread():
+            a_in.set()
+            b_in.wait(5)
+        log.append("a left")
+        a_out.set()
+
+    def b():
+        a_in.wait(5)
+        with _blas.one_blas_thread():
+            b_in.set()
+            a_out.wait(5)
+        log.append("b left")
+
+    threads = [threading.Thread(target=f) for f in (a, b)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+    assert log == ["limited", "a left", "restored", "b left"]
+
+
 def test_the_users_own_blas_setting_is_kept(monkeypatch):
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")
     monkeypatch.setitem(_blas._SET_BY_US, "env", False)

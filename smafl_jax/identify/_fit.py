@@ -623,6 +623,7 @@ def _refine(model, spec, args, solver, max_steps, rtol, atol, stall=True):
 _INITS = ("auto", "profile", "linear", None)
 
 
+@blas_limited
 def fit(
     model: eqx.Module,
     data: Any,
