@@ -870,6 +870,12 @@ SELECTION_RULES = ("calibrated", "legacy")
 BASE_AT_FLOOR = 1.2
 
 
+def _at_noise_floor(base_h, noise_sd):
+    """The base's held-out RMSE over the noise SD when it is within `BASE_AT_FLOOR`, else None (no estimate: None)."""
+    ratio = base_h / noise_sd if noise_sd else None
+    return ratio if ratio is not None and ratio <= BASE_AT_FLOOR else None
+
+
 def _segment_index(record):
     """Record indices of the segments of `whole_record_split` (one per branch, or the whole record)."""
     if "branch" in record.extra:
@@ -1206,8 +1212,8 @@ def _select_calibrated(
     )
     fitted_c = sorted((c for c in candidates if c.get("fitted")), key=lambda c: c["heldout_rmse"])
     base_h = base_te["rmse"]
-    ratio = base_h / noise_sd if noise_sd else None
-    if ratio is not None and ratio <= BASE_AT_FLOOR:
+    ratio = _at_noise_floor(base_h, noise_sd)
+    if ratio is not None:
         reason = (
             f"the base model's held-out RMSE is {ratio:.3g}x the output's noise SD (at most {BASE_AT_FLOOR:g}x: the noise "
             "floor); no structure is left for an effect to explain, so the calibrated test was not run"
@@ -1531,9 +1537,9 @@ def diagnose(
     cal = {**CALIBRATED_DEFAULTS, "fpr": fpr, "n_null": n_null, "n_folds": n_folds, "seed": seed, "refine": refine}
     if rule == "calibrated":
         noise_sd = noise_floor([record])["sd"]
-        if noise_sd and base_h <= BASE_AT_FLOOR * noise_sd:
+        if (ratio := _at_noise_floor(base_h, noise_sd)) is not None:
             warnings.append(
-                f"the base model is at the noise floor: held-out RMSE {base_h:.4g}, {base_h / noise_sd:.3g}x the output's "
+                f"the base model is at the noise floor: held-out RMSE {base_h:.4g}, {ratio:.3g}x the output's "
                 f"noise SD ({noise_sd:.4g}, estimated from the data); no effect was tested (at most {BASE_AT_FLOOR:g}x)"
             )
         selected, chosen, ambiguous, unspecific = _select_calibrated(
