@@ -27,7 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-CLASSES = ("cascade", "cascade-preisach", "cascade-preisach-gauss")
+CLASSES = ("cascade", "cascade-preisach", "cascade-preisach-gauss", "cascade-phase")
 CELLS = {
     "random_levels cold 20 Hz length": dict(drive="random_levels", rate_hz=20, start="cold", orientation="length"),
     "random_levels warm 10 Hz": dict(drive="random_levels", rate_hz=10, start="warm"),

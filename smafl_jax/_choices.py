@@ -13,6 +13,7 @@ HYSTERESIS = {
     "eupi": "models._eupi:EUPI",
     "preisach": "models._preisach:Preisach",
     "preisach-gauss": "models._preisach_gauss:GaussianPreisach",
+    "phase": "models._phase_fraction:PhaseFraction",
 }
 #: Model structures `smafl fit --model` accepts.
 #: ``cascade`` is the Joule cascade with the EUPI (the paper's); ``cascade-NAME`` puts another registered hysteresis class

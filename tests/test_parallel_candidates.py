@@ -57,7 +57,7 @@ def test_threads_give_the_results_of_one_after_another(tmp_path, monkeypatch):
 def _fake_candidates(record, log, barrier, fail=None):
     """`fit_one` stand-in: records when each candidate starts; the first two must overlap (barrier)."""
     model = _report_fit.build_model("cascade", record)
-    rmse = {"auto": 0.3, "cascade-preisach": 0.1, "cascade-preisach-gauss": 0.2}
+    rmse = {"auto": 0.3, "cascade-preisach": 0.4, "cascade-preisach-gauss": 0.2, "cascade-phase": 0.1}
 
     def fit_one(name, options):
         log.append((name, threading.current_thread().name))
@@ -75,14 +75,18 @@ def _fake_candidates(record, log, barrier, fail=None):
 def test_candidates_overlap_and_keep_their_order(tmp_path, monkeypatch):
     rec = _voltage_record(tmp_path, 6, 400, 0.05)  # fast sampling: no static classes
     monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: min(k, 2))
+    # the free Preisach (no joint refinement) back among the classes behind the lag, so that one candidate has none
+    monkeypatch.setattr(sj.Preisach, "compared_behind_lag", True)
     log = []
     _, doc, _ = _report_fit.choose_structure(rec, _fake_candidates(rec, log, threading.Barrier(2)), {}, progress=False)
     choice = doc["settings"]["structure_choice"]
-    # the default cascade and the class with a joint refinement start together; the Preisach (no refinement) waits
+    # the default cascade and the first class with a joint refinement start together; the Preisach (no refinement) last
     assert [n for n, _ in log][:2] in (["auto", "cascade-preisach-gauss"], ["cascade-preisach-gauss", "auto"])
-    assert log[2][0] == "cascade-preisach" and all(t.startswith("smafl-candidate") for _, t in log)
-    assert [c["structure"] for c in choice["candidates"]] == ["cascade", "cascade-preisach", "cascade-preisach-gauss"]
-    assert choice["chosen"] == "cascade-preisach" and choice["threads"] == 2
+    assert [n for n, _ in log][2:] == ["cascade-phase", "cascade-preisach"]
+    assert all(t.startswith("smafl-candidate") for _, t in log)
+    order = ["cascade", "cascade-preisach", "cascade-preisach-gauss", "cascade-phase"]  # the registry's order
+    assert [c["structure"] for c in choice["candidates"]] == order
+    assert choice["chosen"] == "cascade-phase" and choice["threads"] == 2
 
 
 def test_a_failing_candidate_raises_its_error(tmp_path, monkeypatch):
@@ -205,5 +209,5 @@ def test_choose_structure_waits_for_a_side_refit_of_a_class_it_does_not_keep(tmp
         return cand._replace(pending=pending)
 
     _, doc, _ = _report_fit.choose_structure(rec, with_pending, {}, progress=False)
-    assert doc["settings"]["structure_choice"]["chosen"] == "cascade-preisach"  # the default class is not kept
+    assert doc["settings"]["structure_choice"]["chosen"] == "cascade-phase"  # the default class is not kept
     assert ended.is_set()  # and its side refit had ended before the choice returned

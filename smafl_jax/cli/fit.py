@@ -16,7 +16,7 @@ from .check import TIME_HELP, add_resample_argument, add_window_argument, apply_
 
 
 def add_parser(sub):
-    from .._choices import MEMORY, MODELS, SOLVERS, SPLITS
+    from .._choices import HYSTERESIS, MEMORY, MODELS, SOLVERS, SPLITS
 
     p = sub.add_parser("fit", help="fit a model to a record: fit.json, report.md and figures")
     p.add_argument(
@@ -36,10 +36,12 @@ def add_parser(sub):
         choices=MODELS,
         default="auto",
         help="auto (every hysteresis class fitted and the lower validation RMSE kept: behind the thermal lag for a drive "
-        "voltage (cascade, cascade-preisach, cascade-preisach-gauss; the EUPI cascade stays unless a class with a lower "
-        "validation RMSE halves it or fits the training part better), on the input itself for any other input (eupi, preisach, preisach-gauss); thresholds and "
-        "tilts trained), eupi (paper eq. 2), cascade (thermal + EUPI), cascade-NAME (thermal + another registered "
-        "hysteresis model), joule (eq. 7 lag), or any other registered hysteresis model (preisach, preisach-gauss); default auto",
+        "voltage (cascade and the other classes that auto compares behind the lag, README: Model choice; the EUPI "
+        "cascade stays unless a class with a lower "
+        "validation RMSE halves it or fits the training part better), on the input itself for any other input "
+        f"({', '.join(HYSTERESIS)}); thresholds and tilts trained), eupi (paper eq. 2), cascade (thermal + EUPI), "
+        "cascade-NAME (thermal + another registered hysteresis model), joule (eq. 7 lag), or any registered "
+        f"hysteresis model alone ({', '.join(HYSTERESIS)}); default auto",
     )
     p.add_argument("--out", default=None, help="output folder (default: fit_<data stem>)")
     p.add_argument(

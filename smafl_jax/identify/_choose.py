@@ -35,7 +35,7 @@ from .. import _config  # noqa: F401
 from .._compile_cache import release_if_needed
 from .._errors import UserInputError
 from .._progress import say as progress_line
-from ..models._hysteresis import hysteresis_of, record_model, thermal_of
+from ..models._hysteresis import hysteresis_class, hysteresis_of, record_model, thermal_of
 from ._baselines import is_voltage
 from ._fit import _as_weights, as_fit_data, fit
 
@@ -243,12 +243,16 @@ def auto_candidates(record, grid=None, sparse=False):
     from .._choices import HYSTERESIS, MODELS
 
     structure, why = auto_structure(record)
-    if structure not in HYSTERESIS:  # the cascade: every other class behind the same thermal lag
-        others = tuple(m for m in MODELS if m.startswith(f"{structure}-"))  # `smafl fit --model cascade-NAME`
+    if structure not in HYSTERESIS:  # the cascade: the other classes behind the same thermal lag
+        others = tuple(
+            m  # `smafl fit --model cascade-NAME`, for each class that auto compares there
+            for m in MODELS
+            if m.startswith(f"{structure}-") and hysteresis_class(m[len(structure) + 1 :]).compared_behind_lag
+        )
         # ``sparse``: the default EUPI on its sparse grid too, unless the user set the grid (opt-in; session 43)
         sparse = (f"{structure}{SPARSE_SUFFIX}",) if sparse and _default_grid(grid) else ()
         return (structure, *sparse, *others), why + (
-            "; each registered hysteresis class behind the lag is fitted"
+            "; each hysteresis class that auto compares behind the lag is fitted"
             + (" (EUPI on its default and its sparse grid)" if sparse else "")
             + " and the held-out error chooses"
             if others or sparse

@@ -131,7 +131,10 @@ def solve(
     if method == "nnls" and (lower is not None or upper is not None):
         raise ValueError("method='nnls' handles non-negative and unbounded columns only; use method='bvls' for bounds")
     if drop_constant:
-        dead = nonneg & (np.ptp(A, axis=0) <= dead_rtol * max(float(np.max(np.abs(A))), 1e-300))
+        # the peak-to-peak of a column-major copy: numpy reduces a row-major (n, p) array over its rows one short row
+        # at a time (3x the time of the copy and the contiguous reduction); max and min are exact either way
+        spread = np.ptp(np.asfortranarray(A), axis=0)
+        dead = nonneg & (spread <= dead_rtol * max(float(np.max(np.abs(A))), 1e-300))
         if np.any(dead):
             keep = ~dead
             if not np.any(keep):

@@ -1,6 +1,6 @@
 """Model classes (equinox PyTrees) and what every model needs.
 
-The hysteresis protocol (`AbstractHysteresis`) and its models (`EUPI`, `Preisach`, `GaussianPreisach`), the Joule thermal lag
+The hysteresis protocol (`AbstractHysteresis`) and its models (`EUPI`, `Preisach`, `GaussianPreisach`, `PhaseFraction`), the Joule thermal lag
 (`JouleThermal`), the paper's eq. (7) model (`JouleLag`), the `Cascade`, the play operators and the
 models' evaluation-method rule, positivity constraints, initial-state rules, the jitted `simulate`
 entry points, padded calls and trained-range checks.
@@ -34,6 +34,7 @@ from ._operators import (
     resolve_method,
 )
 from ._padding import MIN_BUCKET, bucket_length, padded_call
+from ._phase_fraction import PhaseFraction
 from ._preisach import (
     EVERETT_INTERPOLANTS,
     LAM_GRID,
@@ -57,6 +58,7 @@ from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, therm
 __all__ = [
     "AbstractHysteresis",
     "GaussianPreisach",
+    "PhaseFraction",
     "hysteresis_of",
     "thermal_of",
     "hysteresis_models",

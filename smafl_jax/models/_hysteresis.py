@@ -2,7 +2,8 @@
 
 `AbstractHysteresis` is the abstract `equinox.Module` that fitting (`smafl_jax.fit`), sampling
 (`Posterior`), control (`plant_step`, `IICompensator`), diagnosis and the effect catalogue
-(`ExtendedModel`) program against; the concrete models (`EUPI`, `Preisach`, `GaussianPreisach`) are final classes.
+(`ExtendedModel`) program against; the concrete models (`EUPI`, `Preisach`, `GaussianPreisach`, `PhaseFraction`) are final
+classes.
 A hysteresis model is a rate-independent map with memory from a scalar input record ``x(k)`` to an
 output ``y(k)``, linear in its *linear weights* for fixed grids:
 
@@ -93,6 +94,9 @@ class AbstractHysteresis(eqx.Module):
     #: False for a class whose only nonlinear parameters in a fit are the thermal rate and start, which the profiled
     #: start already optimises with the weights solved exactly: the joint steps then cost time and gain nothing.
     refine_jointly = True
+    #: ``--model auto`` fits this class behind the Joule lag on a drive voltage (``cascade-NAME``).  False for a class
+    #: that auto leaves out there (its measurement on the class); ``--model cascade-NAME`` still fits it.
+    compared_behind_lag = True
 
     def orientation_sign(self):
         """The orientation as the factor on the signed feature columns: ``float(orientation)`` in a user's model, the
