@@ -55,7 +55,7 @@ def test_matches_a_plain_numpy_reversal_point_loop(rng, init, orientation):
     s = u / 2.0
     width = lambda w: w + sj.models._phase_fraction.MIN_WIDTH
     f = _reference_fraction(s, 0.6, width(0.07), 0.35, width(0.09), init)
-    np.testing.assert_allclose(np.asarray(m.fraction(jnp.asarray(u))), f, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(m.shape(jnp.asarray(u))), f, rtol=0, atol=1e-12)
     y = orientation * 1.5 * f + 0.2 * s - 0.3
     np.testing.assert_allclose(np.asarray(m.simulate(jnp.asarray(u))), y, rtol=0, atol=1e-12)
 
@@ -65,7 +65,7 @@ def test_minor_loops_do_not_close():
     Preisach or play-operator model, whose minor loops close."""
     m = _model()
     u = jnp.asarray(np.concatenate([np.linspace(0.0, 1.3, 60), np.linspace(1.3, 0.8, 30), np.linspace(0.8, 1.3, 30)]))
-    f = np.asarray(m.fraction(u))
+    f = np.asarray(m.shape(u))
     assert abs(f[-1] - f[59]) > 1e-2
     assert np.all(f >= 0.0) and np.all(f <= 1.0)
 

@@ -11,6 +11,7 @@ from ._constraints import POSITIVE_FLOOR, as_float_array, constrain, log_jacobia
 from ._eupi import EUPI, threshold_grid, tilt_grid
 from ._hysteresis import (
     AbstractHysteresis,
+    AbstractScaledShape,
     column_weight_scales,
     hysteresis_class,
     hysteresis_models,
@@ -57,6 +58,7 @@ from ._thermal import PAPER_K1, PAPER_K2, JouleThermal, effective_voltage, therm
 
 __all__ = [
     "AbstractHysteresis",
+    "AbstractScaledShape",
     "GaussianPreisach",
     "PhaseFraction",
     "hysteresis_of",

@@ -56,6 +56,7 @@ from .. import _config  # noqa: F401
 
 __all__ = [
     "AbstractHysteresis",
+    "AbstractScaledShape",
     "hysteresis_of",
     "thermal_of",
     "hysteresis_models",
@@ -315,6 +316,44 @@ def check_orientation(model: AbstractHysteresis, name: str) -> None:
 
 def _orientation_line(orientation) -> str:
     return f"output orientation: {'rises' if orientation > 0 else 'falls'} with contraction"
+
+
+class AbstractScaledShape(AbstractHysteresis):
+    """A hysteresis that is one non-negative ``scale`` on a shape in [0, 1] (`shape`), plus a reversible linear term
+    ``gain * s`` and an ``offset``: ``y = o * scale * shape(u) + gain * s + offset`` (`GaussianPreisach`,
+    `PhaseFraction`).  The subclass declares the fields ``scale`` (positive), ``gain`` and ``offset``."""
+
+    @abc.abstractmethod
+    def shape(self, u) -> jnp.ndarray:
+        """The shape per sample, in [0, 1] (one scan)."""
+
+    def linear_fields(self):
+        return ("scale", "gain", "offset")
+
+    def features(self, u, dt=None):
+        """Design matrix ``(T, 3)``: ``[o * shape, s, 1]`` (the orientation signs the non-negative column only, as in
+        every hysteresis model)."""
+        del dt
+        f = self.shape(u)
+        return jnp.stack([self.orientation_sign() * f, self.normalise(u), jnp.ones_like(f)], axis=1)
+
+    def linear_weights(self):
+        return jnp.stack([self.scale, self.gain, self.offset])
+
+    def nonnegative_columns(self):
+        return np.array([True, False, False])
+
+    def with_linear_weights(self, theta):
+        theta = jnp.asarray(theta, dtype=jnp.float64)
+        if theta.shape != (3,):
+            raise ValueError(f"expected 3 linear weights (scale, gain, offset), got shape {theta.shape}")
+        return eqx.tree_at(lambda p: (p.scale, p.gain, p.offset), self, (theta[0], theta[1], theta[2]))
+
+    def simulate(self, u, dt=None):
+        """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
+        del dt
+        u = jnp.asarray(u, dtype=jnp.float64)
+        return self.orientation_sign() * self.scale * self.shape(u) + self.gain * self.normalise(u) + self.offset
 
 
 def hysteresis_of(model: Any) -> AbstractHysteresis | None:

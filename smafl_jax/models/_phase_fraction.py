@@ -45,7 +45,7 @@ import numpy as np
 from .. import _config  # noqa: F401
 from .._io import register_model
 from ._constraints import parameter, positive
-from ._hysteresis import AbstractHysteresis, _orientation_line, check_orientation
+from ._hysteresis import AbstractScaledShape, _orientation_line, check_orientation
 from ._preisach import Preisach
 
 __all__ = ["PhaseFraction"]
@@ -60,7 +60,7 @@ _SD_TO_WIDTH = math.sqrt(3.0) / math.pi
 
 
 @register_model
-class PhaseFraction(AbstractHysteresis):
+class PhaseFraction(AbstractScaledShape):
     """Phase fraction on logistic major branches, reversal branches rescaled to the opposite limit (module docstring).
 
     Final implementation of `AbstractHysteresis` (do not subclass).
@@ -136,9 +136,6 @@ class PhaseFraction(AbstractHysteresis):
         return tuple(dataclasses.replace(out, **{k: jnp.asarray(v, dtype=jnp.float64) for k, v in s.items()}) for s in starts)
 
     # -- structure ---------------------------------------------------------------------------------------------------
-    def linear_fields(self):
-        return ("scale", "gain", "offset")
-
     def fixed_fields(self, train: Collection[str] = ()):
         """The normalisation; the branches are always trained."""
         del train
@@ -185,37 +182,11 @@ class PhaseFraction(AbstractHysteresis):
         state, f = self._advance(state, x)
         return state, self.orientation_sign() * self.scale * f + self.gain * self.normalise(x) + self.offset
 
-    def fraction(self, u):
+    def shape(self, u):
         """Phase fraction per sample (one scan)."""
         u = jnp.asarray(u, dtype=jnp.float64)
         _, f = jax.lax.scan(lambda state, x: self._advance(state, x), self.initial_state(u[0]), u)
         return f
-
-    # -- linear structure --------------------------------------------------------------------------------------------
-    def features(self, u, dt=None):
-        """Design matrix ``(T, 3)``: ``[o * fraction, s, 1]``."""
-        del dt
-        f = self.fraction(u)
-        return jnp.stack([self.orientation_sign() * f, self.normalise(u), jnp.ones_like(f)], axis=1)
-
-    def linear_weights(self):
-        return jnp.stack([self.scale, self.gain, self.offset])
-
-    def nonnegative_columns(self):
-        return np.array([True, False, False])
-
-    def with_linear_weights(self, theta):
-        theta = jnp.asarray(theta, dtype=jnp.float64)
-        if theta.shape != (3,):
-            raise ValueError(f"expected 3 linear weights (scale, gain, offset), got shape {theta.shape}")
-        return eqx.tree_at(lambda p: (p.scale, p.gain, p.offset), self, (theta[0], theta[1], theta[2]))
-
-    # -- evaluation --------------------------------------------------------------------------------------------------
-    def simulate(self, u, dt=None):
-        """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
-        del dt
-        u = jnp.asarray(u, dtype=jnp.float64)
-        return self.orientation_sign() * self.scale * self.fraction(u) + self.gain * self.normalise(u) + self.offset
 
     def describe(self):
         """Scale, linear term, the two branches in input units, initial state, orientation."""

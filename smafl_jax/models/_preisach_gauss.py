@@ -38,7 +38,7 @@ import numpy as np
 from .. import _config  # noqa: F401
 from .._io import register_model
 from ._constraints import as_float_array, parameter, positive
-from ._hysteresis import AbstractHysteresis, _orientation_line, check_orientation
+from ._hysteresis import AbstractScaledShape, _orientation_line, check_orientation
 from ._preisach import Preisach, _switch_fractions, preisach_levels
 
 __all__ = ["GaussianPreisach"]
@@ -52,7 +52,7 @@ START_SHAPES = ((0.3, 0.15), (0.5, 0.15), (0.7, 0.15), (0.3, 0.4), (0.5, 0.4), (
 
 
 @register_model
-class GaussianPreisach(AbstractHysteresis):
+class GaussianPreisach(AbstractScaledShape):
     """Preisach relay grid weighted by a bivariate Gaussian density in loop centre and width (module docstring).
 
     Final implementation of `AbstractHysteresis` (do not subclass).
@@ -203,9 +203,6 @@ class GaussianPreisach(AbstractHysteresis):
         g = jnp.exp(-(q - jnp.min(q)))  # shifted: a density far off the grid stays finite (its shape still moves)
         return g / jnp.sum(g)
 
-    def linear_fields(self):
-        return ("scale", "gain", "offset")
-
     def fixed_fields(self, train: Collection[str] = ()):
         """The grid (levels, span, ramp); the shape is always trained."""
         del train
@@ -240,7 +237,7 @@ class GaussianPreisach(AbstractHysteresis):
         r = jnp.maximum(jnp.minimum(state, hi), lo)
         return r, self._read(r, x, self.density())
 
-    def _relay_sum(self, u):
+    def shape(self, u):
         """``sum_ab rho_ab R_ab`` per sample (one scan; the density computed once)."""
         u = jnp.asarray(u, dtype=jnp.float64)
         a, b = self.thresholds()
@@ -257,37 +254,6 @@ class GaussianPreisach(AbstractHysteresis):
 
         _, out = jax.lax.scan(step, self.initial_state(u[0]), u)
         return out
-
-    # -- linear structure --------------------------------------------------------------------------------------------
-    def features(self, u, dt=None):
-        """Design matrix ``(T, 3)``: ``[o * density-weighted relay sum, s, 1]`` (the orientation signs the non-negative
-        column only, as in every hysteresis model)."""
-        del dt
-        o = self.orientation_sign()
-        f = self._relay_sum(u)
-        return jnp.stack([o * f, self.normalise(u), jnp.ones_like(f)], axis=1)
-
-    def linear_weights(self):
-        return jnp.stack([self.scale, self.gain, self.offset])
-
-    def nonnegative_columns(self):
-        return np.array([True, False, False])
-
-    def with_linear_weights(self, theta):
-        theta = jnp.asarray(theta, dtype=jnp.float64)
-        if theta.shape != (3,):
-            raise ValueError(f"expected 3 linear weights (scale, gain, offset), got shape {theta.shape}")
-        return eqx.tree_at(lambda p: (p.scale, p.gain, p.offset), self, (theta[0], theta[1], theta[2]))
-
-    # -- evaluation --------------------------------------------------------------------------------------------------
-    def simulate(self, u, dt=None):
-        """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
-        del dt
-        return self._read_all(u)
-
-    def _read_all(self, u):
-        o = self.orientation_sign()
-        return o * self.scale * self._relay_sum(u) + self.gain * self.normalise(u) + self.offset
 
     def describe(self):
         """Scale, linear term, the density's shape in input units, grid, initial state, orientation."""
