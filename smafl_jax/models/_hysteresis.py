@@ -349,11 +349,15 @@ class AbstractScaledShape(AbstractHysteresis):
             raise ValueError(f"expected 3 linear weights (scale, gain, offset), got shape {theta.shape}")
         return eqx.tree_at(lambda p: (p.scale, p.gain, p.offset), self, (theta[0], theta[1], theta[2]))
 
+    def read_out(self, shape, x):
+        """Output from the shape and the input (one sample in `step`, or a whole record)."""
+        return self.orientation_sign() * self.scale * shape + self.gain * self.normalise(x) + self.offset
+
     def simulate(self, u, dt=None):
         """Output for input record ``u`` (1-D). ``dt`` is ignored: the model is rate-independent."""
         del dt
         u = jnp.asarray(u, dtype=jnp.float64)
-        return self.orientation_sign() * self.scale * self.shape(u) + self.gain * self.normalise(u) + self.offset
+        return self.read_out(self.shape(u), u)
 
 
 def hysteresis_of(model: Any) -> AbstractHysteresis | None:

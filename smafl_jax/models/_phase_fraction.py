@@ -180,7 +180,7 @@ class PhaseFraction(AbstractScaledShape):
     def step(self, state, x):
         """One sample: the fraction moved along the branch of the input's direction, then the read-out."""
         state, f = self._advance(state, x)
-        return state, self.orientation_sign() * self.scale * f + self.gain * self.normalise(x) + self.offset
+        return state, self.read_out(f, x)
 
     def shape(self, u):
         """Phase fraction per sample (one scan)."""

@@ -226,16 +226,12 @@ class GaussianPreisach(AbstractScaledShape):
         a, _ = self.thresholds()
         return jnp.ones_like(a) if self.init == "descended" else jnp.zeros_like(a)
 
-    def _read(self, r, x, rho):
-        o = self.orientation_sign()
-        return o * self.scale * (r @ rho) + self.gain * self.normalise(x) + self.offset
-
     def step(self, state, x):
         """One sample: every relay switched by ``x``, then the density-weighted read-out."""
         a, b = self.thresholds()
         lo, hi = _switch_fractions(x, a, b, self.ramp)
         r = jnp.maximum(jnp.minimum(state, hi), lo)
-        return r, self._read(r, x, self.density())
+        return r, self.read_out(r @ self.density(), x)
 
     def shape(self, u):
         """``sum_ab rho_ab R_ab`` per sample (one scan; the density computed once)."""
