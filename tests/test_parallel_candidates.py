@@ -16,6 +16,7 @@ import smafl_jax as sj
 from smafl_jax import _progress  # private: the thread-aware step counters and line tags under test
 from smafl_jax.identify import _choose  # private: the thread-safe screening memo under test
 from smafl_jax.report import (
+    HYSTERESIS,
     _report_fit,  # private: the candidate pool under test
     fit_record,
 )
@@ -50,7 +51,8 @@ def test_threads_give_the_results_of_one_after_another(tmp_path, monkeypatch):
         model, doc, _ = fit_record(rec, **pinned)
         assert doc["settings"]["structure_choice"]["threads"] == n
         got[n] = (sj.model_to_dict(model), _without_seconds(doc), doc["metrics"], doc["notes"])
-    assert len(got[1][1][0]) == 6  # three cascades, then the three static classes
+    cascades = 1 + sum(sj.models.hysteresis_class(k).compared_behind_lag for k in HYSTERESIS if k != "eupi")
+    assert len(got[1][1][0]) == cascades + len(HYSTERESIS)  # the cascades auto compares, then every static class
     assert got[3] == got[1]
 
 
