@@ -566,9 +566,10 @@ def _lift_zero_gains(model, spec, profiled):
     k1 = _has_k1(model) and bool(spec.thermal.k1)
     if not (grids or (k1 and not profiled)):
         return model
-    theta, nonneg = h.linear_weights(), np.asarray(h.nonnegative_columns())
-    floor = 1e-4 * float(jnp.max(jnp.abs(theta[nonneg]), initial=0.0))
-    return model.with_hysteresis(h.with_linear_weights(jnp.where(nonneg, jnp.maximum(theta, floor), theta)))
+    # on the host: exact operations, and no XLA program compiled per gain count (18 of them on the benchmark record)
+    theta, nonneg = np.asarray(h.linear_weights()), np.asarray(h.nonnegative_columns())
+    floor = 1e-4 * float(np.max(np.abs(theta[nonneg]), initial=0.0))
+    return model.with_hysteresis(h.with_linear_weights(jnp.asarray(np.where(nonneg, np.maximum(theta, floor), theta))))
 
 
 def _finite_tree(tree):
