@@ -35,8 +35,9 @@ def _stand_ins(record, val, whole, noise_sd=0.01):
     return fit_one, calls
 
 
-def _choose(record, monkeypatch, val, whole):
-    monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: 1)  # no early refit: every finish() is the check's
+def _choose(record, monkeypatch, val, whole, threads=1):
+    # one thread: no early refit, every finish() is the check's; two: the check's refits run side by side
+    monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: min(k, threads))
     fit_one, calls = _stand_ins(record, val, whole)
     _, doc, _ = _report_fit.choose_structure(record, fit_one, {}, progress=False)
     return doc, calls
@@ -45,9 +46,11 @@ def _choose(record, monkeypatch, val, whole):
 VAL = {"auto": 0.1, "cascade-preisach-gauss": 0.2, "cascade-phase": 0.3}  # the validation block keeps the EUPI cascade
 
 
-def test_a_class_that_cannot_fit_its_record_is_replaced(record, monkeypatch):
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_class_that_cannot_fit_its_record_is_replaced(record, monkeypatch, threads):
     # the kept cascade's whole-record refit stays at 30x the noise; the phase class fits the record at 2x
-    doc, calls = _choose(record, monkeypatch, VAL, {"auto": 0.3, "cascade-preisach-gauss": 0.25, "cascade-phase": 0.02})
+    whole = {"auto": 0.3, "cascade-preisach-gauss": 0.25, "cascade-phase": 0.02}
+    doc, calls = _choose(record, monkeypatch, VAL, whole, threads)
     choice = doc["settings"]["structure_choice"]
     assert choice["chosen"] == "cascade-phase" and doc["settings"]["structure"] == "cascade-phase"
     check = choice["whole_record_check"]

@@ -447,12 +447,16 @@ def _whole_record_check(runs, k, done, early, progress):
         progress,
     )
     t0 = time.perf_counter()
-    refits = {}
-    for i, (name, cand, _) in enumerate(runs):
-        if i == k or cand.metrics.get("validation") is None:
-            continue
-        with tagged(name):
-            refits[i] = early[i][0] if i in early else cand.finish()
+    todo = [i for i, (_, cand, _) in enumerate(runs) if i != k and i not in early and cand.metrics.get("validation") is not None]
+
+    def refit(i):
+        with tagged(runs[i][0]):
+            return runs[i][1].finish()
+
+    with _Pool(candidate_threads(len(todo))) as pool:  # one refit per core, as the candidates were fitted
+        futures = {i: pool.submit(refit, i) for i in todo}
+        refits = {i: f.result() for i, f in futures.items()}
+    refits.update({i: early[i][0] for i in early if i != k})
     scores = {kept_name: rmse(doc), **{runs[i][0]: rmse(r[1]) for i, r in refits.items()}}
     best = min(refits, key=lambda i: rmse(refits[i][1]), default=None)
     switch = best is not None and rmse(refits[best][1]) * WHOLE_RECORD_MARGIN < rmse(doc)
