@@ -430,7 +430,7 @@ def _whole_record_check(runs, k, done, early, progress):
     walked); the whole-record refit then shows whether the kept class can fit the record at all.  Measured on an
     independent plant with rescaled-branch (Liang-Rogers) kinetics and a step drive (experiments/indep_plant_d.py, seed
     1, steps 5 Hz): the EUPI cascade won a validation block at 56 % coverage (300x the noise, the others 370x) and its
-    whole-record refit stayed at 32x the noise, where the phase cascade's reached 2.2x; held out 62x against 3.8x.  On
+    whole-record refit stayed at 32x the noise, where the phase cascade's reached 4.3x; held out 62x -> 15.6x.  On
     the stored per-class fits of 120 independent records (sessions 27-28 and 54; each class's saved model is its
     whole-record refit) this rule changed 5 choices, each better held out (62.4 -> 9.2, 2.7 -> 2.3, 71 -> 15, 425 -> 251,
     151 -> 94x the noise) and none worse.  The refits of the other classes cost time only when the check fires."""
