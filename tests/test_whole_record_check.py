@@ -25,8 +25,9 @@ def _stand_ins(record, val, whole, noise_sd=0.01):
 
         def finish():
             calls[name] += 1
-            noise = {"sd": noise_sd, "whole_record_ratio": whole[name] / noise_sd}
-            metrics = {**m, "whole_record": {"rmse": whole[name]}, "noise": noise}
+            noise = {"sd": noise_sd, "whole_record_ratio": None if whole[name] is None else whole[name] / noise_sd}
+            # None: a refit whose output is not finite (fit_record then stores no whole-record metrics)
+            metrics = {**m, "whole_record": None if whole[name] is None else {"rmse": whole[name]}, "noise": noise}
             doc = {"settings": {"structure": name}, "notes": [f"refit of {name}"], "metrics": metrics, "data": {}}
             return model, doc, (np.ones(len(record), bool), np.zeros(len(record), bool), None)
 
@@ -75,3 +76,9 @@ def test_a_refit_near_the_noise_is_not_checked(record, monkeypatch):
     choice = doc["settings"]["structure_choice"]
     assert choice["chosen"] == "cascade" and "whole_record_check" not in choice
     assert calls == {"auto": 1, "cascade-preisach-gauss": 0, "cascade-phase": 0}
+
+
+def test_a_refit_without_finite_output_cannot_win(record, monkeypatch):
+    doc, calls = _choose(record, monkeypatch, VAL, {"auto": 0.3, "cascade-preisach-gauss": None, "cascade-phase": 0.2})
+    check = doc["settings"]["structure_choice"]["whole_record_check"]
+    assert not check["switched"] and check["whole_record_rmse"]["cascade-preisach-gauss"] is None

@@ -439,7 +439,11 @@ def _whole_record_check(runs, k, done, early, progress):
     ratio = noise.get("whole_record_ratio")
     if ratio is None or not np.isfinite(ratio) or ratio <= WHOLE_RECORD_CHECK:
         return None, None, {}
-    rmse = lambda d: _rmse_or_inf((d.get("metrics") or {}).get("whole_record"))
+
+    def rmse(d):  # a refit whose output is not finite has no whole-record metrics: it cannot win
+        m = (d.get("metrics") or {}).get("whole_record")
+        return _rmse_or_inf(m) if m else np.inf
+
     kept_name = runs[k][0]
     say(
         f"model auto: the kept {kept_name}'s whole-record refit leaves {ratio:.3g}x the output noise SD; refitting the "
@@ -472,7 +476,7 @@ def _whole_record_check(runs, k, done, early, progress):
         )
     )
     info = {
-        "whole_record_rmse": scores,
+        "whole_record_rmse": {n: (v if np.isfinite(v) else None) for n, v in scores.items()},  # JSON has no inf
         "noise_ratio": ratio,
         "validation_choice": kept_name,
         "switched": bool(switch),
