@@ -29,7 +29,7 @@ import indep_plant_d as pd  # noqa: E402
 CELLS = ("pwm:25:cold:displacement", "multisine:10:warm:length", "steps:5:mid:displacement", "triangle:50:cold:length")
 
 
-def run_one(seed, cell, physics, model, minutes, tmp):
+def run_one(seed, cell, physics, model, minutes, tmp, slow_mode=None):
     import smafl_jax as sj
     from smafl_jax.report import fit_record
 
@@ -38,7 +38,8 @@ def run_one(seed, cell, physics, model, minutes, tmp):
     h0, sd = r["heldout_start"], r["noise_sd"]
     path = pd.write_csv(Path(tmp) / f"d{seed}_{drive}.csv", r, stop=h0)
     t0 = time.perf_counter()
-    m, doc, _ = fit_record(sj.load_record(path), **({"model": model} if model else {}))
+    opts = {**({"model": model} if model else {}), **({"slow_mode": slow_mode} if slow_mode is not None else {})}
+    m, doc, _ = fit_record(sj.load_record(path), **opts)
     secs = time.perf_counter() - t0
     yh = np.asarray(sj.simulate(m, r["voltage"], 1.0 / float(rate)))
     e = yh - r["output"]
@@ -54,6 +55,11 @@ def run_one(seed, cell, physics, model, minutes, tmp):
         "held_x": float(np.sqrt(np.mean(e[h0:] ** 2)) / sd),
         "clean_x": float(np.sqrt(np.mean(ec[h0:] ** 2)) / sd),
         "whole_record_check": choice.get("whole_record_check"),
+        "slow_mode_check": choice.get("slow_mode_check"),
+        "slow_mode": slow_mode,
+        "thermal": {k: float(getattr(th, k)) for k in ("k1", "slow_k1", "slow_ratio") if getattr(th, k) is not None}
+        if (th := sj.thermal_of(m) if hasattr(sj, "thermal_of") else getattr(m, "thermal", None)) is not None
+        else None,
         "seconds": secs,
         "truth": {k: v for k, v in r["truth"].items() if k not in ("temperature", "fraction")},
     }
@@ -67,11 +73,12 @@ def main(argv=None):
     ap.add_argument("--physics", nargs="*", default=list(pd.PHYSICS))
     ap.add_argument("--model", default=None)
     ap.add_argument("--minutes", type=float, default=15.0)
+    ap.add_argument("--slow-mode", default=None, help="fit_record's slow_mode (default: its own default)")
     a = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
             for cell in a.cells:
-                row = run_one(seed, cell, tuple(a.physics), a.model, a.minutes, tmp)
+                row = run_one(seed, cell, tuple(a.physics), a.model, a.minutes, tmp, a.slow_mode)
                 with open(a.out, "a") as fh:
                     fh.write(json.dumps(row) + "\n")
                 print(

@@ -210,7 +210,7 @@ def default_priors(names: Sequence[str], data: Any, model: Any = None) -> dict[s
     relays: 1 / sqrt(n)); its other trainable fields by its `nonlinear_priors` (EUPI thresholds and tilts:
     lognormal around their grid scale; fitted operator memory logits: normal(0, 4)).  The parts every model
     shares are matched by name: k1 lognormal around the paper's 0.05 1/s, sd 2 in log (time constants
-    ~0.4 s..1000 s at 95 %); k2 lognormal around the value that maps ``max U^2`` to the output range, sd 3 (on
+    ~0.4 s..1000 s at 95 %), a slow thermal mode's rate and ratio lognormal too (below); k2 lognormal around the value that maps ``max U^2`` to the output range, sd 3 (on
     their last two name parts, so a thermal ``k1`` nested in an extended model, ``base.thermal.k1``, gets the k1
     prior); the Joule lag's ``offset`` as a signed weight; the noise scale half-normal with the output's range as
     scale.  Anything else (catalogue effect parameters) is flat.
@@ -222,6 +222,10 @@ def default_priors(names: Sequence[str], data: Any, model: Any = None) -> dict[s
         # in log space: yr / umax^2 can over- or underflow for extreme units
         "thermal.k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
         "k2": Prior("lognormal", math.log(0.05) + math.log(yr) - 2.0 * math.log(umax), 3.0),
+        # a slow thermal mode (`JouleThermal.slow_k1`, ``slow_ratio``): time constants ~20 s..5000 s and shares of the
+        # heat ~0.5-95 % at 95 %, around the 120 s and 25 % a fit starts from
+        "thermal.slow_k1": Prior("lognormal", math.log(1.0 / 120.0), 1.5),
+        "thermal.slow_ratio": Prior("lognormal", math.log(1.0 / 3.0), 2.0),
         "offset": Prior("normal", 0.0, 10.0 * yr),  # `JouleLag.offset` (a hysteresis' own offset is claimed above)
         "noise.sigma": Prior("halfnormal", scale=yr),
     }

@@ -136,6 +136,15 @@ def add_parser(sub):
         "the validation error choose (off by default: on one independent plant the held-out geometric mean went 2.67x -> "
         "2.11x the noise, on another it made an excursion record 10x worse; docs/identification.md, session 43)",
     )
+    p.add_argument(
+        "--slow-mode",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="a second, slower thermal mode in a cascade (a wire on a nylon line, in a sleeve or on clamps warms a second "
+        "mass): 'auto' (default, one record with --model auto) fits the kept class again with one when its whole-record "
+        "fit leaves more than 2x the noise, and keeps it when it is lower on validation by more than 1.2x; 'on': every "
+        "cascade gets one; 'off': never (fit.json settings.structure_choice.slow_mode_check)",
+    )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")
     p.add_argument("--n-asym", type=int, default=4, help="thresholds per tilt (default 4)")
@@ -274,6 +283,7 @@ def record_fit_options(args, *, progress: bool = True) -> dict:
         memory=args.memory,
         early_stopping=args.early_stopping,
         median=args.median,
+        slow_mode=args.slow_mode,
         **{**_model_options(args, grid), "progress": progress},
     )
 
@@ -342,6 +352,8 @@ def _run_records(args, records, grid):
         print("note: --early-stopping applies to one record (its validation samples); not used here", file=sys.stderr)
     if args.median:
         print("note: --median applies to one record (its validation samples); not written here", file=sys.stderr)
+    if args.slow_mode != "auto":
+        print("note: --slow-mode applies to one record; several records are fitted with one thermal mode", file=sys.stderr)
     write_records_outputs(out, records, doc, details, figures=not args.no_figures)
     for note in doc["notes"]:
         if note.startswith((ABOVE_NOISE, START_MISMATCH)):

@@ -171,6 +171,8 @@ def plant_init(model, u_init):
     thermal, hyst = _parts(model)
     u_init = _f64(u_init)
     theta = thermal.initial_state(u_init) if thermal is not None else jnp.zeros_like(u_init)
+    if thermal is not None and thermal.has_slow_mode:  # the slow mass starts where the wire does (V^2 units)
+        theta = (theta, theta / thermal.gain)
     placeholder = jax.tree.map(jnp.zeros_like, hyst.initial_state(hyst.u_ref))  # replaced at the first sample
     return theta, placeholder, jnp.asarray(True)
 
@@ -179,7 +181,17 @@ def plant_step(model, state, u, dt):
     """One sample of the plant: ``(state, U(k)) -> (state, y(k))`` (thermal ZOH step, then the hysteresis ``step``)."""
     theta, hstate, fresh = state
     thermal, hyst = _parts(model)
-    if thermal is not None:
+    if thermal is not None and thermal.has_slow_mode:
+        # `JouleThermal.heat` one sample at a time: the slow mass low-passes U^2, the wire relaxes to the mixture
+        theta, z = theta
+        a_s = jnp.exp(-thermal.slow_k1 * dt)
+        z = a_s * z + (1.0 - a_s) * u * u
+        heat = (u * u + thermal.slow_ratio * z) / (1.0 + thermal.slow_ratio)
+        a = jnp.exp(-thermal.k1 * dt)
+        theta = a * theta + (1.0 - a) * thermal.gain * heat
+        x = model.drive_of(theta)
+        theta = (theta, z)
+    elif thermal is not None:
         a = jnp.exp(-thermal.k1 * dt)
         theta, _ = thermal_step(theta, u, a, thermal.gain)
         x = model.drive_of(theta)

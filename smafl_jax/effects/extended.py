@@ -168,11 +168,11 @@ class ExtendedModel(eqx.Module):
         ambient = [a for a in (e.ambient(t, qref) for e in effs) if a is not None]
         q_amb = functools.reduce(jnp.add, ambient) if ambient else jnp.zeros(n)
         q0 = self._q0(x)
-        x = th.drive_samples(x)  # the sampling convention of the base's thermal stage
+        # U^2 by the base thermal stage's sampling convention, with its slow mode's share when it has one
+        heats = th.heat(x, dt)
 
         def step(q, xs):
-            xk, qa = xs
-            heat = xk * xk
+            heat, qa = xs
             for e in effs:
                 heat = e.heating(heat, q, qref)
             losses = [c for c in (e.loss(q, qref) for e in effs) if c is not None]
@@ -185,7 +185,7 @@ class ExtendedModel(eqx.Module):
             q = a * q + (1.0 - a) * target
             return q, q
 
-        _, q = jax.lax.scan(step, q0, (x, q_amb))
+        _, q = jax.lax.scan(step, q0, (heats, q_amb))
         return q
 
     def hysteresis_input(self, u, dt):

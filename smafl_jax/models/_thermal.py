@@ -23,6 +23,18 @@ EUPI.  Initial state: ``"steady"`` (default: at rest with the first input,
 ``"ambient"`` (``theta(-1) = 0``) or ``"given"`` (the state a constant ``u0`` V
 would hold).  A joint fit of several records may hold one ``u0`` per record
 (a vector): each record then starts from its own state, and `for_record` picks one.
+
+Optional slow thermal mode (``slow_k1``, ``slow_ratio``; both None: one mode, the paper's model).  An SMA wire wound on a
+nylon line, in a sleeve or clamped to a heat sink warms a second, slower mass, and the wire then relaxes towards
+``(U^2 + r z) / (1 + r)`` instead of ``U^2``, with ``z`` the heat the slow mass has taken up:
+
+    z(k) = a_s z(k-1) + (1 - a_s) U(k)^2,   a_s = exp(-slow_k1 dt),   r = slow_ratio > 0
+
+(share ``c = r / (1 + r)`` of the drive's heat reaches the wire through the slow mass).  The steady state is
+unchanged (``theta = g U^2``), so the hysteresis input and every start rule mean what they meant; the slow mass starts
+in the same state as the wire (steady, ambient or the state a constant ``u0`` would hold).  With ``slow_k1`` and the
+wire's ``k1`` this is the general two-pole, one-zero linear thermal network with the zero between the poles that a
+wire coupled to one other mass gives.
 """
 
 from __future__ import annotations
@@ -90,8 +102,14 @@ class JouleThermal(eqx.Module):
     # drives (PWM, steps) a one-sample mismatch leaves structure that a "delay" effect then explains.  Screened on
     # held-out data by the diagnosis (`smafl_jax.diagnosis.refined_base`), not trained.
     lag: int = eqx.field(static=True, default=0)
+    # the optional slow thermal mode (module docstring): its rate (1/s) and the ratio r of the heat reaching the wire
+    # through it to the heat reaching it directly; both None (the default) or both set
+    slow_k1: jnp.ndarray | None = positive(default=None)
+    slow_ratio: jnp.ndarray | None = positive(default=None)
 
     def __check_init__(self):
+        if (self.slow_k1 is None) != (self.slow_ratio is None):
+            raise ValueError("JouleThermal needs slow_k1 and slow_ratio together (a slow thermal mode) or neither")
         if self.lag not in LAGS:
             raise ValueError(f"JouleThermal lag must be one of {LAGS} samples, got {self.lag!r}")
         if self.method not in MODEL_METHODS:
@@ -131,9 +149,35 @@ class JouleThermal(eqx.Module):
         g = self.gain
         theta0 = self.initial_state(u[0])
         # theta(k) = a theta(k-1) + b(k): the thermal_step recurrence as an affine scan (same products per sample)
-        v = self.drive_samples(u)
-        b = (1.0 - a) * g * v * v
+        if self.has_slow_mode:
+            b = (1.0 - a) * g * self.heat(u, dt)
+        else:  # the one-mode products in their old order: fits without a slow mode stay bit for bit what they were
+            v = self.drive_samples(u)
+            b = (1.0 - a) * g * v * v
         return affine(a, b, theta0, method=resolve_method(self.method, u.shape[0], 1, "JouleThermal method"))
+
+    @property
+    def has_slow_mode(self) -> bool:
+        """True when the model holds a slow thermal mode (``slow_k1``, ``slow_ratio``)."""
+        return self.slow_k1 is not None
+
+    def with_slow_mode(self, slow_k1: float, slow_ratio: float) -> JouleThermal:
+        """Copy with a slow thermal mode of rate ``slow_k1`` (1/s) and ratio ``slow_ratio`` (module docstring)."""
+        f = jnp.float64
+        return dataclasses.replace(self, slow_k1=jnp.asarray(slow_k1, dtype=f), slow_ratio=jnp.asarray(slow_ratio, dtype=f))
+
+    def heat(self, u, dt):
+        """The squared drive the wire relaxes to at each sample (V^2): ``U^2`` of the drive sample that heats the interval
+        (`drive_samples`), mixed with the slow mass's share when the model has a slow mode."""
+        v = self.drive_samples(jnp.asarray(u, dtype=jnp.float64))
+        h = v * v
+        if not self.has_slow_mode:
+            return h
+        a_s = jnp.exp(-self.slow_k1 * jnp.asarray(dt, dtype=jnp.float64))
+        # the slow mass starts where the wire does (in V^2: theta(-1) / g)
+        z0 = self.initial_state(v[0]) / self.gain
+        z = affine(a_s, (1.0 - a_s) * h, z0, method=resolve_method(self.method, h.shape[0], 1, "JouleThermal method"))
+        return (h + self.slow_ratio * z) / (1.0 + self.slow_ratio)
 
     def drive_samples(self, u):
         """The drive sample that heats each interval: ``u`` itself, or with ``lag=1`` the previous one (u(-1) = u(0),
@@ -184,7 +228,11 @@ class JouleThermal(eqx.Module):
     def describe(self) -> list[str]:
         """The rates and the start state for a fit report (``report.md``), one line each."""
         k1, k2 = float(self.k1), float(self.k2)
-        return [
-            f"thermal: k1 = {k1:.6g} 1/s (time constant {1 / k1:.4g} s), k2 = {k2:.6g}",
-            f"thermal state at t = 0: {self.start_description()}",
-        ]
+        lines = [f"thermal: k1 = {k1:.6g} 1/s (time constant {1 / k1:.4g} s), k2 = {k2:.6g}"]
+        if self.has_slow_mode:
+            ks, r = float(self.slow_k1), float(self.slow_ratio)
+            lines.append(
+                f"slow thermal mode: rate {ks:.4g} 1/s (time constant {1 / ks:.4g} s), {100 * r / (1 + r):.3g} % of the "
+                "heat reaches the wire through it"
+            )
+        return [*lines, f"thermal state at t = 0: {self.start_description()}"]
