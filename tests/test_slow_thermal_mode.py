@@ -116,7 +116,7 @@ def test_saved_and_loaded(tmp_path):
 
 
 def test_sampler_priors_cover_the_slow_mode(stand_in_record):
-    from smafl_jax.bayes._bayes import default_priors
+    from smafl_jax.bayes import default_priors
 
     names = ["thermal.slow_k1", "base.thermal.slow_ratio"]
     r = stand_in_record
