@@ -210,7 +210,8 @@ def default_priors(names: Sequence[str], data: Any, model: Any = None) -> dict[s
     relays: 1 / sqrt(n)); its other trainable fields by its `nonlinear_priors` (EUPI thresholds and tilts:
     lognormal around their grid scale; fitted operator memory logits: normal(0, 4)).  The parts every model
     shares are matched by name: k1 lognormal around the paper's 0.05 1/s, sd 2 in log (time constants
-    ~0.4 s..1000 s at 95 %), a slow thermal mode's rate and ratio lognormal too (below); k2 lognormal around the value that maps ``max U^2`` to the output range, sd 3 (on
+    ~0.4 s..1000 s at 95 %), a slow thermal mode's rate and ratio lognormal too (below); k2 lognormal around the
+    value that maps ``max U^2`` to the output range, sd 3 (on
     their last two name parts, so a thermal ``k1`` nested in an extended model, ``base.thermal.k1``, gets the k1
     prior); the Joule lag's ``offset`` as a signed weight; the noise scale half-normal with the output's range as
     scale.  Anything else (catalogue effect parameters) is flat.

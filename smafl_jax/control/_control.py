@@ -47,7 +47,6 @@ import numpy as np
 
 from .. import _config  # noqa: F401
 from ..models._simulate import check_sample_time, scalar_leaves_as_arrays
-from ..models._thermal import thermal_step
 
 __all__ = [
     "PID",
@@ -170,9 +169,7 @@ def plant_init(model, u_init):
     """
     thermal, hyst = _parts(model)
     u_init = _f64(u_init)
-    theta = thermal.initial_state(u_init) if thermal is not None else jnp.zeros_like(u_init)
-    if thermal is not None and thermal.has_slow_mode:  # the slow mass starts where the wire does (V^2 units)
-        theta = (theta, theta / thermal.gain)
+    theta = thermal.sample_start(u_init) if thermal is not None else jnp.zeros_like(u_init)
     placeholder = jax.tree.map(jnp.zeros_like, hyst.initial_state(hyst.u_ref))  # replaced at the first sample
     return theta, placeholder, jnp.asarray(True)
 
@@ -181,20 +178,9 @@ def plant_step(model, state, u, dt):
     """One sample of the plant: ``(state, U(k)) -> (state, y(k))`` (thermal ZOH step, then the hysteresis ``step``)."""
     theta, hstate, fresh = state
     thermal, hyst = _parts(model)
-    if thermal is not None and thermal.has_slow_mode:
-        # `JouleThermal.heat` one sample at a time: the slow mass low-passes U^2, the wire relaxes to the mixture
-        theta, z = theta
-        a_s = jnp.exp(-thermal.slow_k1 * dt)
-        z = a_s * z + (1.0 - a_s) * u * u
-        heat = (u * u + thermal.slow_ratio * z) / (1.0 + thermal.slow_ratio)
-        a = jnp.exp(-thermal.k1 * dt)
-        theta = a * theta + (1.0 - a) * thermal.gain * heat
-        x = model.drive_of(theta)
-        theta = (theta, z)
-    elif thermal is not None:
-        a = jnp.exp(-thermal.k1 * dt)
-        theta, _ = thermal_step(theta, u, a, thermal.gain)
-        x = model.drive_of(theta)
+    if thermal is not None:
+        theta, th = thermal.sample_step(theta, u, dt)
+        x = model.drive_of(th)
     else:
         x = u
     hstate = jax.tree.map(lambda first, kept: jnp.where(fresh, first, kept), hyst.initial_state(x), hstate)

@@ -179,6 +179,26 @@ class JouleThermal(eqx.Module):
         z = affine(a_s, (1.0 - a_s) * h, z0, method=resolve_method(self.method, h.shape[0], 1, "JouleThermal method"))
         return (h + self.slow_ratio * z) / (1.0 + self.slow_ratio)
 
+    def sample_start(self, u_first):
+        """State of `sample_step` before the first sample: ``theta`` by the ``init`` rule, and with a slow mode the pair
+        ``(theta, z)``, the slow mass where the wire is (V^2 units)."""
+        theta = self.initial_state(u_first)
+        return (theta, theta / self.gain) if self.has_slow_mode else theta
+
+    def sample_step(self, state, u, dt):
+        """One sample of `simulate` for a loop that chooses each drive sample as it goes (the closed loop): ``(state,
+        U(k)) -> (state, theta(k))``, the drive sample heating the interval that ends at sample k."""
+        a = jnp.exp(-self.k1 * dt)
+        if not self.has_slow_mode:
+            return thermal_step(state, u, a, self.gain)
+        # `heat` one sample at a time: the slow mass low-passes U^2, the wire relaxes to the mixture
+        theta, z = state
+        a_s = jnp.exp(-self.slow_k1 * dt)
+        z = a_s * z + (1.0 - a_s) * u * u
+        heat = (u * u + self.slow_ratio * z) / (1.0 + self.slow_ratio)
+        theta = a * theta + (1.0 - a) * self.gain * heat
+        return (theta, z), theta
+
     def drive_samples(self, u):
         """The drive sample that heats each interval: ``u`` itself, or with ``lag=1`` the previous one (u(-1) = u(0),
         the drive before the record held at its first value, consistent with every ``init`` rule)."""
