@@ -138,6 +138,31 @@ def test_fit_recovers_a_known_slow_mode():
     assert float(th.k1) == pytest.approx(0.3, rel=0.02)
 
 
+def test_a_slow_mode_added_to_a_one_mode_fit_nests_it():
+    # the check's fits start from each class's one-mode fit (`slow_warm_start`): the search with the slow mode cannot
+    # end above the one-mode fit on its own samples, and on a record with a slow mode it finds it
+    truth = _cascade()
+    u = _drive(5, 6000)
+    rec = sj.Record.from_arrays(np.arange(6000) * DT, u, np.asarray(sj.simulate(truth, u, DT)))
+    one = dataclasses.replace(truth, thermal=sj.JouleThermal(k1=0.2, k2=0.12))
+    one = sj.fit(one, rec, init="linear", max_steps=100).model
+    ones = [np.ones(6000)]
+    warm = _report_fit.slow_warm_start(one, rec, ones)
+    assert warm.thermal.has_slow_mode and warm.thermal.init == "given"
+
+    def loss(m):
+        return float(sj.fit(m, rec, solver=None, init=None, weights=ones).loss)
+
+    assert loss(warm) < 1e-3 * loss(one)
+    th = warm.thermal  # truth: 0.01 1/s and ratio 0.5, searched from 1/120 1/s and 0.05; k1 0.3 (one-mode fit 0.19)
+    assert (float(th.slow_k1), float(th.slow_ratio), float(th.k1)) == pytest.approx((0.01, 0.5, 0.3), rel=0.05)
+
+
+def test_a_warm_start_needs_the_slow_mode(stand_in_record):
+    with pytest.raises(ValueError, match="needs slow_mode"):
+        _report_fit._fit_structure(stand_in_record, model="cascade", warm_start=_cascade())
+
+
 def test_unknown_slow_mode_option(stand_in_record):
     with pytest.raises(sj.UserInputError, match="unknown slow_mode"):
         _report_fit.fit_record(stand_in_record, slow_mode="yes")
@@ -148,12 +173,15 @@ def test_unknown_slow_mode_option(stand_in_record):
 
 def _stand_ins(record, val, whole, noise_sd=0.01):
     """`fit_one` stand-ins: fixed validation and whole-record RMSEs per class, ``"+slow"`` for a fit with the slow mode."""
-    calls = []
+    calls, models, warm = [], {}, {}
 
     def fit_one(name, options):
-        key = name + ("+slow" if options.get("slow_mode") else "")
+        key = name + ("+slow" if options.get("slow_mode") else "") + ("+warm" if options.get("warm_start") else "")
         model = _report_fit.build_model("cascade", record, slow_mode=bool(options.get("slow_mode")))
-        m = {"validation": {"rmse": val[key], "e_r_percent": 10 * val[key]}, "train": {"rmse": val[key] / 2}}
+        models[key] = model
+        warm[key] = options.get("warm_start")
+        v = val.get(key, 1.1 * val[key.removesuffix("+warm")])  # from the one-mode fit: worse unless said
+        m = {"validation": {"rmse": v, "e_r_percent": 10 * v}, "train": {"rmse": v / 2}}
 
         def finish():
             calls.append(key)
@@ -164,6 +192,7 @@ def _stand_ins(record, val, whole, noise_sd=0.01):
 
         return _report_fit.Candidate(model, m, None, finish, None)
 
+    fit_one.models, fit_one.warm = models, warm  # what each fit returned, and the warm start it was given
     return fit_one, calls
 
 
@@ -171,6 +200,10 @@ def _choose(record, monkeypatch, val, whole):
     monkeypatch.setattr(_report_fit, "candidate_threads", lambda k: 1)
     fit_one, calls = _stand_ins(record, val, whole)
     final, doc, _ = _report_fit.choose_structure(record, fit_one, {}, progress=False, slow_check=True)
+    # a fit with a slow mode starts fresh or from its own class's one-mode fit
+    for key, start in fit_one.warm.items():
+        assert start is (fit_one.models[key.removesuffix("+slow+warm")] if key.endswith("+warm") else None)
+    assert {k for k in fit_one.warm if k.endswith("+warm")} == {k + "+warm" for k in fit_one.warm if k.endswith("+slow")}
     return final, doc, calls
 
 
@@ -192,6 +225,17 @@ def test_the_class_best_with_a_slow_mode_is_kept(stand_in_record, monkeypatch):
     assert choice["chosen"] == "cascade-phase + slow thermal mode" and final.thermal.has_slow_mode
     assert doc["settings"]["structure"] == "cascade-phase+slow" and calls.count("cascade-phase+slow") == 1
     assert "slow thermal mode" in doc["notes"][0]
+    assert check["starts"]["cascade-phase"] == {"fresh": 0.05, "one_mode_fit": pytest.approx(0.055)}
+
+
+def test_the_start_from_the_one_mode_fit_wins_where_it_is_lower(stand_in_record, monkeypatch):
+    val = {**VAL, **SLOW_VAL, "cascade-preisach-gauss+slow+warm": 0.04}
+    whole = {**WHOLE, **SLOW_WHOLE, "cascade-preisach-gauss+slow+warm": 0.005}
+    final, doc, calls = _choose(stand_in_record, monkeypatch, val, whole)
+    check = doc["settings"]["structure_choice"]["slow_mode_check"]
+    assert check["kept"] and check["class"] == "cascade-preisach-gauss" and "from its one-mode fit" in check["note"]
+    assert check["validation_rmse"]["cascade-preisach-gauss"] == 0.04 and check["whole_record_rmse"]["with"] == 0.005
+    assert [c for c in calls if "+slow" in c] == ["cascade-preisach-gauss+slow+warm"]  # only the winner is refitted
 
 
 @pytest.mark.parametrize(

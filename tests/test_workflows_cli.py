@@ -5,6 +5,7 @@ settings raise `UserInputError` before anything is written; and the CLI paths a 
 (a Preisach fit driven by ``smafl control``, a cascade fit's k1).
 """
 
+import dataclasses
 import json
 import logging
 import os
@@ -85,6 +86,18 @@ def test_control_library_and_cli_write_the_same_results(narrow, tmp_path, capsys
 
 
 # -- sweep ------------------------------------------------------------------------------------------------
+
+
+def test_sweep_of_a_slow_thermal_mode(tmp_path):
+    # a plant with a slow thermal mode: each cell of a sweep over its rate and share is the single run with those values
+    m = sj.load_model(TRUTH)
+    slow = dataclasses.replace(m, thermal=m.thermal.with_slow_mode(0.02, 0.5))
+    res = sj.run_sweep("slow_k1=0.005,0.05", ("slow_ratio", [0.2, 1.0]), slow, out=tmp_path, progress=False, **LOOP)
+    e = res.metrics["e_mean_mm"]
+    assert e.shape == (2, 2) and np.ptp(e) > 0  # the slow mass changes what the loop tracks
+    plant = dataclasses.replace(m, thermal=m.thermal.with_slow_mode(0.05, 0.2))
+    loop, _ = WC.build_loop(plant, **LOOP)
+    assert float(sj.closed_loop_metrics(loop, LOOP["dt"])["e_mean_mm"]) == pytest.approx(e[1, 0], rel=1e-9)
 
 
 def test_sweep_library_and_cli_write_the_same_results(narrow, tmp_path, capsys):
@@ -192,6 +205,8 @@ def _call(kind, tmp_path, narrow, kw):
         ("sweep", {"top": 0}, r"top must be >= 1"),
         ("sweep", {"x": "gain=1,2"}, r"choose one of"),
         ("sweep", {"x": "k1=0.05", "model": "HYSTERESIS"}, r"needs a plant with a thermal part"),
+        ("sweep", {"x": "slow_k1=0.01"}, r"sweeping slow_k1 needs a plant with a slow thermal mode"),
+        ("sweep", {"x": "slow_ratio=0,1"}, r"slow_ratio values must be > 0, got 0"),
         ("simulate", {"calibrate_fit": "output_offset"}, r"calibrate_fit needs calibrate"),
         ("simulate", {"calibrate": "abc"}, r"expected START:END"),
         ("simulate", {"calibrate": "0:70", "calibrate_fit": "gain"}, r"unknown parameter"),

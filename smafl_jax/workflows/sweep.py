@@ -41,7 +41,10 @@ LOGGER = logging.getLogger(__name__)
 #: The files `run_sweep` writes to its output folder.
 FILES = ("sweep.csv", "best.csv", "heatmap.png", "metrics.json")
 
-UNITS = {"kp": "V/mm", "ki": "V/(mm s)", "kd": "V s/mm", "tf": "s", "umax": "V", "K": "V/(mm s)", "noise": "mm", "k1": "1/s"}
+UNITS = {
+    "kp": "V/mm", "ki": "V/(mm s)", "kd": "V s/mm", "tf": "s", "umax": "V", "K": "V/(mm s)", "noise": "mm", "k1": "1/s",
+    "slow_k1": "1/s", "slow_ratio": "1",
+}  # fmt: skip
 
 #: Most values on one sweep axis.
 MAX_AXIS = 100_000
@@ -56,7 +59,13 @@ PARAMS = {
     "K": "compensator.K",
     "noise": "noise_sd",
     "k1": "plant.thermal.k1",
+    # a plant fitted with a slow thermal mode (`JouleThermal.slow_k1`, ``slow_ratio``): how the loop fares if the slow
+    # mass were slower or carried more of the heat (a thicker sleeve, another clamp)
+    "slow_k1": "plant.thermal.slow_k1",
+    "slow_ratio": "plant.thermal.slow_ratio",
 }
+#: Axes that are rates or ratios of the plant: positive, with no single-run option to check them against.
+POSITIVE = ("k1", "slow_k1", "slow_ratio")
 
 #: Least seconds between two progress lines.
 PROGRESS_EVERY_S = 2.0
@@ -118,9 +127,9 @@ def parse_axis(spec: str | tuple[str, Sequence[float]]) -> tuple[str, np.ndarray
     if values.size > MAX_AXIS:
         raise UserInputError(f"sweep axis {spec!r}: {values.size} values, more than the limit of {MAX_AXIS}")
     for v in values:  # the same limits as the single-run options (`smafl control --kp ...`)
-        if name == "k1":
+        if name in POSITIVE:
             if not v > 0:
-                raise UserInputError(f"sweep axis {spec!r}: k1 values must be > 0, got {v:g}")
+                raise UserInputError(f"sweep axis {spec!r}: {name} values must be > 0, got {v:g}")
         else:
             try:
                 check_option(name, float(v))
@@ -327,8 +336,13 @@ def run_sweep(
     if "umax" in (xn, yn) and loop.get("umax") is None:
         loop = {**loop, "umax": DEFAULT_UMAX}  # swept: the base value is not used, no note about it
     base, settings = build_loop(model, option_names=option_names, **loop)
-    if "k1" in (xn, yn) and not hasattr(base.plant, "thermal"):
-        raise UserInputError("sweeping k1 needs a plant with a thermal part (a Cascade)")
+    for name in {xn, yn} & set(POSITIVE):
+        if not hasattr(base.plant, "thermal"):
+            raise UserInputError(f"sweeping {name} needs a plant with a thermal part (a Cascade)")
+        if name.startswith("slow_") and not base.plant.thermal.has_slow_mode:
+            raise UserInputError(
+                f"sweeping {name} needs a plant with a slow thermal mode (smafl fit --slow-mode on, or a fit that kept one)"
+            )
     dt = settings["dt_s"]
     out = prepare_out(out, LOGGER)
     axes = {xn: xv, yn: yv}
