@@ -141,9 +141,10 @@ def add_parser(sub):
         choices=("auto", "on", "off"),
         default="auto",
         help="a second, slower thermal mode in a cascade (a wire on a nylon line, in a sleeve or on clamps warms a second "
-        "mass): 'auto' (default, one record with --model auto) fits the kept class again with one when its whole-record "
-        "fit leaves more than 2x the noise, and keeps it when it is lower on validation by more than 1.2x; 'on': every "
-        "cascade gets one; 'off': never (fit.json settings.structure_choice.slow_mode_check)",
+        "mass): 'auto' (default, one record with --model auto) fits every compared class again with one (from a fresh "
+        "start and from its one-mode fit) when the kept whole-record fit leaves more than 2x the noise, and keeps the best "
+        "when it is lower on validation by more than 1.2x and lower on the whole record; 'on': every cascade gets one; "
+        "'off': never (fit.json settings.structure_choice.slow_mode_check)",
     )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")

@@ -610,6 +610,9 @@ def _slow_mode_check(runs, k, done, fit_slow, progress):
         concurrent.futures.wait([c.pending for c in both.values() if c.pending is not None])
 
     def val(c):
+        th = thermal_of(c.model)
+        if th is not None and th.has_slow_mode and not float(th.slow_k1) < float(th.k1):
+            return np.inf  # the joint refinement made the slow mode faster than the wire: not a slower mass (see there)
         return _rmse_or_inf(c.metrics["validation"]) if c.metrics.get("validation") else np.inf
 
     # each class's start that is lower on the validation block (the fresh one on a tie)
