@@ -579,8 +579,9 @@ def _slow_mode_check(runs, k, done, fit_slow, progress):
     on the whole record too.
 
     Why both starts (independent plant D, sleeve only, 9 records): the fresh start alone missed a 20 s sleeve and ended
-    worse on validation than the class without the mode; from the one-mode fit alone the held-out error rose on 2 records
-    (26x -> 272x, 4.7x -> 9.9x the noise) and fell on 1 (13.8x -> 9.1x).
+    worse on validation than the class without the mode; from the one-mode fit alone the held-out error rose on 3 records
+    (26x -> 272x, 4.7x -> 9.9x, 33x -> 280x the noise) and fell on 2 (13.8x -> 9.1x, 184x -> 90x).  A fit whose slow
+    mode ended faster than the wire does not count (`refine_thermal_start` keeps the search below the wire's rate).
 
     Why: a wire wound on a nylon line, in a sleeve or on clamps warms a second, slower mass; one thermal lag then leaves
     a slow drift that no hysteresis class absorbs (independent plant D, a 20-150 s sleeve: default fits 9-99x the noise
