@@ -10,11 +10,15 @@ Ratio = ours seconds / profiled-only seconds.  Other 30 000-sample records: ``--
 (the duration follows from the rate), one process per record so each pays its own compilation.
 
     python -m benchmarks.bench_default_fit [--quick] [--drive pwm|multisine|staircase|steps|chirp|triangle] [--rate HZ]
-        [--threads N] [--solver lm|varpro|...]
+        [--threads N] [--solver lm|varpro|...] [--batch]
 
 ``--threads N``: at most N of ``--model auto``'s candidate classes at once (default: one per core); ``--threads 1``
 in another process is the one-after-another baseline of the threaded fit.  ``--solver S``: the default fit with another
 joint-refinement solver (`smafl fit --solver`); run once with each in separate processes for the ratio.
+
+``--batch``: what a batch script pays per record after its first.  The benchmark record is fitted, then another record
+of the same length (another seed, multisine drive) in the same process; row: second record's seconds / first record's
+seconds.  The second reuses the compiled programs of the first (JAX's in-memory cache) wherever their shapes agree.
 
 JIT compilation is always paid here: `fit_record` does not turn on the on-disk cache of compiled programs that the
 `smafl` command line uses (`SMAFL_COMPILE_CACHE`; session 26: the CLI on this record 96.6 s with an empty cache, 64.2 s
@@ -39,7 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RATIO_MEANING = "default fit seconds / profiled-start-only seconds (what the joint refinement costs)"
 
 
-def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None):
+def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None, batch=False):
     sys.path.insert(0, str(ROOT / "tests"))
     import indep_plant
 
@@ -55,6 +59,8 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None):
 
     minutes = (5.0 if quick else 20.0) * 25 / rate_hz  # 30 000 samples (quick: 7 500)
     r = indep_plant.make_record(7, drive=drive, rate_hz=rate_hz, minutes=minutes, start="cold")
+    if batch:
+        return [_batch_row(sj, fit_record, indep_plant, r, minutes, rate_hz)]
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "rec.csv"
         indep_plant.write_csv(path, r)
@@ -87,6 +93,33 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None):
     ]
 
 
+def _batch_row(sj, fit_record, indep_plant, first, minutes, rate_hz):
+    """The benchmark record, then another record of the same length in the same process (``--batch``)."""
+    second = indep_plant.make_record(11, drive="multisine", rate_hz=rate_hz, minutes=minutes, start="cold")
+    seconds, cpu = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, r in enumerate((first, second)):
+            path = Path(tmp) / f"rec{i}.csv"
+            indep_plant.write_csv(path, r)
+            rec = sj.load_record(path)
+            t0, c0 = time.perf_counter(), time.process_time()
+            _, doc, _ = fit_record(rec)
+            seconds.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+            progress(
+                f"default_fit --batch: record {i + 1}: {seconds[-1]:.1f} s ({cpu[-1]:.1f} s of CPU), chosen {doc['settings']['structure_choice']['chosen']}"
+            )
+    return row(
+        f"default smafl fit in a batch: a second {len(rec)}-sample record in the same process",
+        seconds[1],
+        seconds[0],
+        "s",
+        note="second record (multisine, seed 11) after the benchmark record (pwm, seed 7); ratio = second / first",
+        n_samples=len(rec),
+        cpu_seconds={"first": round(cpu[0], 2), "second": round(cpu[1], 2)},
+    )
+
+
 if __name__ == "__main__":
     import argparse
 
@@ -96,6 +129,7 @@ if __name__ == "__main__":
     ap.add_argument("--rate", type=float, default=25.0)
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--solver", default=None)
+    ap.add_argument("--batch", action="store_true", help="a second record in the same process (what a batch script pays)")
     a = ap.parse_args()
-    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate, threads=a.threads, solver=a.solver):
+    for r_ in run(quick=a.quick, drive=a.drive, rate_hz=a.rate, threads=a.threads, solver=a.solver, batch=a.batch):
         print(r_)
