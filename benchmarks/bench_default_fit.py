@@ -60,7 +60,7 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None, batch=F
     minutes = (5.0 if quick else 20.0) * 25 / rate_hz  # 30 000 samples (quick: 7 500)
     r = indep_plant.make_record(7, drive=drive, rate_hz=rate_hz, minutes=minutes, start="cold")
     if batch:
-        return [_batch_row(sj, fit_record, indep_plant, r, minutes, rate_hz)]
+        return [_batch_row(sj, fit_record, indep_plant, r, minutes, rate_hz, drive)]
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "rec.csv"
         indep_plant.write_csv(path, r)
@@ -93,7 +93,7 @@ def run(quick=False, drive="pwm", rate_hz=25, threads=None, solver=None, batch=F
     ]
 
 
-def _batch_row(sj, fit_record, indep_plant, first, minutes, rate_hz):
+def _batch_row(sj, fit_record, indep_plant, first, minutes, rate_hz, drive):
     """The benchmark record, then another record of the same length in the same process (``--batch``)."""
     second = indep_plant.make_record(11, drive="multisine", rate_hz=rate_hz, minutes=minutes, start="cold")
     seconds, cpu = [], []
@@ -114,7 +114,7 @@ def _batch_row(sj, fit_record, indep_plant, first, minutes, rate_hz):
         seconds[1],
         seconds[0],
         "s",
-        note="second record (multisine, seed 11) after the benchmark record (pwm, seed 7); ratio = second / first",
+        note=f"second record (multisine, seed 11) after the benchmark record ({drive}, seed 7); ratio = second / first",
         n_samples=len(rec),
         cpu_seconds={"first": round(cpu[0], 2), "second": round(cpu[1], 2)},
     )
