@@ -52,6 +52,13 @@ def test_eupi_bad_configuration():
         m.with_linear_weights(np.zeros(3))
 
 
+def test_lag_settles_within_a_number_of_samples():
+    """`settles_within`: the lag's time constant against ``samples`` samples of ``dt`` (auto's static-class gate)."""
+    th = sj.JouleThermal(k1=jnp.asarray(0.019), k2=jnp.asarray(0.05))  # the SMA wing's fitted lag: 53 s
+    assert not th.settles_within(10.0) and th.settles_within(10.0, samples=10.0)
+    assert th.settles_within(10.0, 1.08) and not th.settles_within(10.0, 0.019, samples=5.0)
+
+
 def test_thermal_matches_numpy_loop_and_exact_step(rng):
     th = sj.JouleThermal(k1=jnp.asarray(0.07), k2=jnp.asarray(0.05), init="ambient")
     u = rng.uniform(0, 7.4, 500)

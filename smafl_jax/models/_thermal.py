@@ -223,11 +223,11 @@ class JouleThermal(eqx.Module):
     def effective_voltage(self, theta):
         return effective_voltage(theta, self.k1, self.k2)
 
-    def settles_within(self, dt: float, k1: float | None = None) -> bool:
-        """True when the lag's time constant ``1 / k1`` (this model's, or the rate given) is at most one sample ``dt``:
-        such a record cannot show the lag (quasi-static data), so a static hysteresis of the drive explains it as well
-        as the cascade does."""
-        return float(self.k1 if k1 is None else k1) * float(dt) >= 1.0
+    def settles_within(self, dt: float, k1: float | None = None, samples: float = 1.0) -> bool:
+        """True when the lag's time constant ``1 / k1`` (this model's, or the rate given) is at most ``samples`` samples
+        of ``dt``: a lag that short is barely resolved by the record (quasi-static data), so a static hysteresis of the
+        drive may explain it as well as the cascade does."""
+        return float(self.k1 if k1 is None else k1) * float(dt) * float(samples) >= 1.0
 
     def start_voltage(self, u_first: float) -> float:
         """The initial effective voltage (V) this start rule gives a record whose first input is ``u_first`` (one
