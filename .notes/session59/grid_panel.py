@@ -1,38 +1,10 @@
 """Probe: threshold spacing of the EUPI grid on the random-cell panel (one-mode cascade on each cell's first 70 %).
 
 python .notes/session59/grid_panel.py OUT.jsonl VARIANT[,VARIANT] SEED...
-VARIANT: default (i / 2n), geo (0.02 .. 0.5 geometric), quad (0.5 (i/n)^2).
+Kept as the command session 59's results cite; the probe itself (with these variants and session 60's octave ones) is
+.notes/session60/grid_panel.py.
 """
-import glob, json, sys, time
-import numpy as np
-import smafl_jax as sj
-import smafl_jax.models._eupi as E
-from smafl_jax.report import fit_record
+import runpy
+from pathlib import Path
 
-D = "/tmp/smafl_before_after"
-orig = E.threshold_grid
-GRIDS = {
-    "default": orig,
-    "geo": lambda n: np.full(int(n), 0.25) if int(n) <= 1 else 0.5 * 0.04 ** ((int(n) - 1 - np.arange(int(n))) / (int(n) - 1)),
-    # probe only: default grid sizes (8 symmetric, 4 asymmetric) -> uniform symmetric, geometric asymmetric thresholds
-    "mixed": lambda n: orig(n) if int(n) == 8 else 0.5 * 0.04 ** ((int(n) - 1 - np.arange(int(n))) / (int(n) - 1)),
-    "quad": lambda n: 0.5 * (np.arange(1, int(n) + 1) / max(int(n), 1)) ** 2,
-}
-out, variants, seeds = sys.argv[1], sys.argv[2].split(","), sys.argv[3:]
-for s in seeds:
-    full = glob.glob(f"{D}/m_work_main_{s}_*.csv")[0]
-    part = full.replace("/m_", "/m70_")
-    truth = json.load(open(full.replace(".csv", ".truth.json")))
-    rec, p70 = sj.load_record(full), sj.load_record(part)
-    for v in variants:
-        E.threshold_grid = GRIDS[v]
-        t0 = time.time()
-        m, doc, _ = fit_record(p70, model="cascade", slow_mode="off")
-        yh = np.asarray(sj.simulate(m, rec.u, rec.dt))
-        e = yh - rec.y; h0 = truth["heldout_start"]; sd = truth["noise_sd"]
-        row = dict(seed=int(s), cell=full.split("main_")[1][:-4], variant=v,
-                   train=float(np.sqrt(np.mean(e[:h0] ** 2)) / sd), held=float(np.sqrt(np.mean(e[h0:] ** 2)) / sd),
-                   val=(doc["metrics"].get("validation") or {}).get("rmse", np.nan) / sd, seconds=time.time() - t0)
-        print(json.dumps(row), flush=True)
-        with open(out, "a") as f:
-            f.write(json.dumps(row) + "\n")
+runpy.run_path(str(Path(__file__).resolve().parents[1] / "session60" / "grid_panel.py"), run_name="__main__")
