@@ -43,6 +43,7 @@ def test_fit_stores_effective_range_of_the_saved_model(tmp_path):
     x = np.asarray(model.hysteresis_input(rec.u, rec.dt))
     assert doc["data"]["effective_input_range"] == pytest.approx([x[train].min(), x[train].max()], rel=1e-12)
     assert doc["data"]["input_range"] == pytest.approx([rec.u[train].min(), rec.u[train].max()], rel=1e-12)
+    assert doc["data"]["output_range"] == pytest.approx([rec.y[train].min(), rec.y[train].max()], rel=1e-12)
 
 
 def test_fit_stores_the_range_of_the_refitted_model():
@@ -58,6 +59,7 @@ def test_fit_stores_the_range_of_the_refitted_model():
     x = np.asarray(model.hysteresis_input(rec.u, rec.dt))
     assert doc["data"]["effective_input_range"] == pytest.approx([x.min(), x.max()], rel=1e-12)
     assert doc["data"]["input_range"] == pytest.approx([rec.u.min(), rec.u.max()], rel=1e-12)
+    assert doc["data"]["output_range"] == pytest.approx([rec.y.min(), rec.y.max()], rel=1e-12)
     # the record's validation block reaches inputs its training part does not: the two ranges differ
     assert rec.u.max() > rec.u[train].max() or rec.u.min() < rec.u[train].min() or x.max() > x[train].max()
 

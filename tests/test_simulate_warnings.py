@@ -11,7 +11,7 @@ import pytest
 import smafl_jax as sj
 from smafl_jax.cli import main
 from smafl_jax.models import range_check
-from smafl_jax.models._range import RANGE_TOL  # private: white-box test of the tolerance's size
+from smafl_jax.models._range import OUTPUT_TOL, RANGE_TOL, output_check  # private: white-box tests of the tolerances
 from smafl_jax.workflows.simulate import fitted_output_span
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
@@ -84,6 +84,34 @@ def test_simulate_does_not_warn_a_hair_outside_but_counts_it(setup, tmp_path):
     res = sj.simulate_record(setup["path"], csv)
     w = next(w for w in res.warnings if w.startswith("input 'voltage_V' leaves the range"))
     assert "60 above the max by up to 0.6" in w and "first at 10 s for 3 s" in w
+
+
+def test_output_check_warns_only_when_the_input_stays_in_range():
+    y = np.r_[np.linspace(0.0, 1.0, 50), 1.0 + 1.5 * OUTPUT_TOL, 0.5]
+    c = output_check(y, [0.0, 1.0], input_inside=True, dt=0.1)
+    assert c["n_beyond_tolerance"] == 1 and c["max_outside"] == pytest.approx(1.5 * OUTPUT_TOL)
+    assert "leaves the range of the output it was fitted on" in c["warning"] and "first at 5 s" in c["warning"]
+    # the input leaves its own range too: said, not warned
+    c = output_check(y, [0.0, 1.0], input_inside=False, dt=0.1)
+    assert "warning" not in c and "input leaves its trained range too" in c["note"]
+    # within the tolerance, or no range in the file
+    assert "warning" not in output_check(np.r_[y[:50], 1.0 + 0.5 * OUTPUT_TOL], [0.0, 1.0], input_inside=True)
+    assert not output_check(y, None, input_inside=True)["checked"]
+
+
+def test_simulate_warns_when_the_model_output_leaves_its_fitted_range(setup, tmp_path):
+    """An output far beyond what the model was fitted to reach, with the input in range, is an extrapolation on an
+    untrained branch: independent plants' own outputs stayed within 6 % of the span there."""
+    mfile = tmp_path / "m.json"
+    res = sj.simulate_record(setup["path"], setup["csv"], metrics_file=mfile)
+    assert not any("output it was fitted on" in w for w in res.warnings)
+    assert json.loads(mfile.read_text())["output_range_check"]["n_beyond_tolerance"] == 0
+    y = setup["y"]
+    narrow = tmp_path / "narrow.json"  # as if the fitted record's output had spanned only its lower half
+    lo, hi = float(y.min()), float(y.min() + 0.5 * np.ptp(y))
+    sj.save_model(narrow, setup["model"], data={**setup["data"], "output_range": [lo, hi]})
+    w = next(w for w in sj.simulate_record(narrow, setup["csv"]).warnings if "output it was fitted on" in w)
+    assert "while its input stays inside the trained range" in w
 
 
 def test_blank_measured_cells_are_left_out_of_the_score_and_kept_in_the_csv(setup, tmp_path):

@@ -124,6 +124,16 @@ def _input_range(records, masks=None) -> list[float]:
     return value_range(np.concatenate([np.asarray(r.u)[m] if m is not None else np.asarray(r.u) for r, m in zip(records, masks)]))
 
 
+#: fit.json ``data.output_range_rule``.
+OUTPUT_RANGE_RULE = "min and max of the measured output over the samples the saved model was fitted on"
+
+
+def train_output_mask(record) -> np.ndarray:
+    """The samples of ``record`` whose output was measured and is finite (not bridged across a resampling gap)."""
+    y = np.asarray(record.y, dtype=np.float64)
+    return np.isfinite(y) & np.asarray(getattr(record, "measured", np.ones(y.shape, bool)), bool)
+
+
 def add_record_extras(
     doc: dict, record, train: np.ndarray, val: np.ndarray, yhat: np.ndarray, fitted_on: np.ndarray | None = None
 ) -> dict:
@@ -139,6 +149,12 @@ def add_record_extras(
         if whole
         else "min and max of the input over the training samples (the range the model was fitted on)"
     )
+    on = (np.ones(len(record), bool) if fitted_on is None else np.asarray(fitted_on, bool)) & train_output_mask(record)
+    if fitted_on is None:
+        on &= np.asarray(train, bool)
+    if on.any():  # what the saved model was fitted to reach: `simulate` warns when its output leaves that far
+        doc["data"]["output_range"] = value_range(record.y, on)
+        doc["data"]["output_range_rule"] = OUTPUT_RANGE_RULE
     doc["data"]["processing"] = list(getattr(record, "processing", ()) or ())
     model_val = doc["metrics"].get("validation")
     doc["baselines"] = baselines_doc(
@@ -655,6 +671,8 @@ def _fit_records_structure(
             "units": dict(records[0].units),
             "input_range": _input_range(records),
             "input_range_rule": "min and max of the input over all records (the joint model trains on every sample)",
+            "output_range": value_range(np.concatenate([np.asarray(r.y, np.float64)[train_output_mask(r)] for r in records])),
+            "output_range_rule": OUTPUT_RANGE_RULE,
             "records": [
                 {
                     "name": n,

@@ -45,7 +45,7 @@ class SimulationResult(NamedTuple):
     (time, input, simulated output, the uncalibrated output with a calibration, the measured column);
     ``output_name``: the simulated column's name; ``scores``: the metrics against the measured column (None
     without one; with a calibration they cover the samples after the segment, raw and re-anchored);
-    ``calibration``: the re-anchoring (None without); ``range_checks``: the raw and effective input
+    ``calibration``: the re-anchoring (None without); ``range_checks``: the model output (`output_check`, last) and the raw and effective input
     against the fitted ranges; ``warnings`` / ``notes``: what was logged, as text; ``record`` and
     ``model`` (the one simulated); ``out`` / ``metrics_file``: the files written (None when not asked).
     """
@@ -510,7 +510,7 @@ def simulate_record(
                     f"'{_out_name(output_name, data_info)}_uncalibrated')"
                 )
             warn(text)
-    from ..models._range import model_range_checks
+    from ..models._range import model_range_checks, output_check
 
     t0 = float(rec.time[0])  # warnings and JSON on the record's own time axis (a record starting at 1000 s says 1026.6 s)
     if calibration is None:
@@ -526,13 +526,21 @@ def simulate_record(
     y = np.asarray(simulate(model, rec.u, rec.dt))
     if not np.all(np.isfinite(y)):
         raise UserInputError(f"{model_label}: the model produced non-finite output on {data_label}")
+    # the raw model's output, before any re-anchoring: that is what the fitted output range describes
+    inside = not any(c.get("warning") for c in checks if c.get("what") in ("input", "effective input"))
+    y_raw = y if calibration is None else np.asarray(simulate(raw_model, rec.u, rec.dt))
+    out_chk = output_check(y_raw, data_info.get("output_range"), input_inside=inside, dt=rec.dt, t0=t0)
+    checks.append(out_chk)
+    if out_chk.get("warning"):
+        warn(out_chk["warning"])
+    elif out_chk.get("note") and out_chk.get("checked"):
+        note(out_chk["note"])
     out_name = _out_name(output_name, data_info)
     if out_name in ("time_s", rec.input_name):
         raise UserInputError(f"{o('output_name')} {out_name!r} clashes with an input column")
     cols = {"time_s": rec.time, rec.input_name: rec.u, out_name: y}
     scores = None
     if calibration is not None:
-        y_raw = np.asarray(simulate(raw_model, rec.u, rec.dt))
         raw_name = f"{out_name}_uncalibrated"
         if raw_name in (rec.input_name, measured_col):
             raise UserInputError(
@@ -623,6 +631,7 @@ def simulate_record(
                 "input_range_check": checks[0],
                 "effective_input_range_check": next((c for c in checks[1:] if c.get("what") == "effective input"), None),
                 "branch_check": next((c for c in checks if c.get("what") == "branches"), None),
+                "output_range_check": out_chk,
                 "processing": list(rec.processing),
                 "measured_sign": measured_sign,
             },
