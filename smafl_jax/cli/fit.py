@@ -137,6 +137,15 @@ def add_parser(sub):
         "2.11x the noise, on another it made an excursion record 10x worse; docs/identification.md, session 43)",
     )
     p.add_argument(
+        "--hold-input",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="the saved model's hysteresis holds its input to the trained range, so that it does not extrapolate outside "
+        "it: 'auto' (default) for a directly measured input (temperature, pressure), 'on' a cascade's thermal state too, "
+        "'off' never (fit.json settings.hold_input; session 61: NiTi runs past the trained temperatures 13.6 -> 2.2 and "
+        "10.4 -> 1.2, a drive's thermal state held on simulated plants worse)",
+    )
+    p.add_argument(
         "--slow-mode",
         choices=("auto", "on", "off"),
         default="auto",
@@ -303,6 +312,7 @@ def _model_options(args, grid):
         gain_prior=args.gain_prior,
         grid=grid,
         sparse_grid=args.sparse_grid,
+        hold_input=args.hold_input,
         progress=True,
     )
 

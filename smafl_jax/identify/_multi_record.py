@@ -41,6 +41,7 @@ from ..models._range import value_range
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._gain_prior import GAIN_PRIOR
+from ._hold import check_hold_input, hold_fitted
 from ._metrics import metrics, noise_floor, noise_floor_note
 from ._split import interpolated_note
 
@@ -78,6 +79,7 @@ FIT_OPTIONS = (
     "thermal_start",
     "sees",
     "gain_prior",
+    "hold_input",
 )
 
 
@@ -455,11 +457,19 @@ def fit_records(
     model as fitted (a cascade holds one thermal start and memory rule per record: run record i with
     ``record_model.for_record(i)``); the returned and saved model starts by the one shared rule, for new records.  ``model="auto"`` with
     leave-one-record-out on a directly measured input fits every registered hysteresis class and keeps the lowest
-    mean held-out RMSE (`smafl_jax.report.choose_structure`; fit.json ``settings.structure_choice``).
+    mean held-out RMSE (`smafl_jax.report.choose_structure`; fit.json ``settings.structure_choice``).  ``hold_input``:
+    as for `fit_record` (`smafl_jax.identify._hold`).
     """
+    records = [records] if hasattr(records, "u") else list(records)
+    hold = check_hold_input(fit_record_kwargs.get("hold_input", "auto"))
+    fitted, doc, details = _fit_records(records, model, progress, fit_record_kwargs)
+    return hold_fitted(fitted, doc, hold), doc, details
+
+
+def _fit_records(records, model, progress, fit_record_kwargs):
+    """`fit_records` before the saved model's input is held (`hold_fitted`)."""
     from ..report._report_fit import Candidate, choose_structure
 
-    records = [records] if hasattr(records, "u") else list(records)
     sparse = bool(fit_record_kwargs.pop("sparse_grid", False))
     if model != "auto" or len(records) < 2 or fit_record_kwargs.get("split", "auto") == "none":
         # nothing to compare classes on without leave-one-record-out: "auto" is then `auto_structure`'s class
@@ -499,8 +509,10 @@ def _fit_records_structure(
         "thermal_start": "auto",
         "sees": "auto",
         "gain_prior": GAIN_PRIOR,
+        "hold_input": "auto",
     }
     opts.update(fit_record_kwargs)
+    check_hold_input(opts["hold_input"])
     records = [records] if hasattr(records, "u") else list(records)
     if not records:
         raise UserInputError("no records to fit")
@@ -529,6 +541,11 @@ def _fit_records_structure(
             say(f"leave-one-record-out fold {i + 1}/{len(records)}: {names[i]} held out, {len(train)} records train")
             t0 = time.perf_counter()
             res_i, info_i = _joint_fit(train, model=model, progress=False, **fit_kw)
+            # the fold model held as the saved one will be (`hold_fitted`), to the range of its own training records
+            fold_data = {"input_range": _input_range(train)}
+            if opts["hold_input"] == "on" and thermal_of(res_i.model) is not None:
+                fold_data.update(_trained_hysteresis(res_i.model, train))
+            res_i = res_i._replace(model=hold_fitted(res_i.model, {"data": fold_data}, opts["hold_input"]))
             y_i, scored, start_i = _heldout(res_i.model, info_i, rec)
             finite = bool(np.all(np.isfinite(y_i)))
             m_i = metrics(rec.y[scored], y_i[scored]) if finite else None

@@ -171,6 +171,8 @@ class EUPI(AbstractHysteresis):
     # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
     # output signs share their compiled programs; None in every model a user holds.
     sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`); None: the model extrapolates outside its range
+    held: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         check_orientation(self, "EUPI")
@@ -333,7 +335,7 @@ class EUPI(AbstractHysteresis):
                 f"operators at t = 0 (fitted memory; 0 = ascended, 1 = descended bound): median {np.median(frac):.2f}, "
                 f"range {frac.min():.2f}-{frac.max():.2f}"
             )
-        return lines + [_orientation_line(self.orientation)]
+        return lines + [_orientation_line(self.orientation), *self.held_lines()]
 
     def _initial_state(self, s0, r, a):
         if self.init == "descended":

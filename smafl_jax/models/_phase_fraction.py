@@ -83,6 +83,8 @@ class PhaseFraction(AbstractScaledShape):
 
     # Only in `compile_form` (orientation 0): the orientation as data (`AbstractHysteresis.compile_form`).
     sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`); None: the model extrapolates outside its range
+    held: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         check_orientation(self, "PhaseFraction")
@@ -199,4 +201,5 @@ class PhaseFraction(AbstractScaledShape):
             f"centre {to_u(self.cool_centre):.4g} (width {width(self.cool_width):.3g}); reversal branches rescaled to the "
             f"opposite limit; input range [{float(self.u_ref):g}, {float(self.u_ref) + span:g}], init {self.init}",
             _orientation_line(self.orientation),
+            *self.held_lines(),
         ]

@@ -146,6 +146,8 @@ class Preisach(AbstractHysteresis):
     # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
     # output signs share their compiled programs; None in every model a user holds.
     sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`); None: the model extrapolates outside its range
+    held: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         check_orientation(self, "Preisach")
@@ -248,7 +250,7 @@ class Preisach(AbstractHysteresis):
     def step(self, state, x):
         """One sample: every relay switched by ``x``, then the weighted read-out."""
         a, b = self.thresholds()
-        lo, hi = _switch_fractions(x, a, b, self.width)
+        lo, hi = _switch_fractions(self.seen(x), a, b, self.width)
         r = jnp.maximum(jnp.minimum(state, hi), lo)
         o = self.orientation_sign()
         y = o * (r @ self.w) + self.offset
@@ -258,7 +260,7 @@ class Preisach(AbstractHysteresis):
 
     def _scan(self, u, weights=None):
         """One scan over the input; per step the relay states (``weights=None``) or their weighted sum."""
-        u = jnp.asarray(u, dtype=jnp.float64)
+        u = self.seen(u)
         a, b = self.thresholds()
         return _relay_scan(a, b, self.width, self.initial_state(u[0]), u, weights)
 

@@ -94,6 +94,8 @@ class GaussianPreisach(AbstractScaledShape):
     # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
     # output signs share their compiled programs; None in every model a user holds.
     sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
+    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`); None: the model extrapolates outside its range
+    held: tuple[float, float] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         check_orientation(self, "GaussianPreisach")
@@ -229,13 +231,13 @@ class GaussianPreisach(AbstractScaledShape):
     def step(self, state, x):
         """One sample: every relay switched by ``x``, then the density-weighted read-out."""
         a, b = self.thresholds()
-        lo, hi = _switch_fractions(x, a, b, self.ramp)
+        lo, hi = _switch_fractions(self.seen(x), a, b, self.ramp)
         r = jnp.maximum(jnp.minimum(state, hi), lo)
         return r, self.read_out(r @ self.density(), x)
 
     def shape(self, u):
         """``sum_ab rho_ab R_ab`` per sample (one scan; the density computed once)."""
-        u = jnp.asarray(u, dtype=jnp.float64)
+        u = self.seen(u)
         a, b = self.thresholds()
         rho = self.density()
         width = self.ramp
@@ -264,4 +266,5 @@ class GaussianPreisach(AbstractScaledShape):
             f"[{float(self.u_ref):g}, {float(self.u_ref) + span:g}] and {100 * self.extend:g} % beyond each end), "
             f"init {self.init}",
             _orientation_line(self.orientation),
+            *self.held_lines(),
         ]

@@ -159,8 +159,7 @@ def range_check(
     out["warning"] = (
         f"{what} '{column}' leaves the range the model was fitted on [{lo:.6g}, {hi:.6g}]: {n_out} of {v.size} samples "
         f"({100 * n_out / v.size:.1f} %) outside by more than {100 * RANGE_TOL:g} % of the span in {len(runs)} stretch(es), "
-        f"the longest at {where(*longest)} ({'; '.join(parts)}); the model extrapolates there, and a hysteresis model keeps "
-        "a memory of the excursion afterwards"
+        f"the longest at {where(*longest)} ({'; '.join(parts)})" + _EXTRAPOLATES
     )
     return out
 
@@ -347,4 +346,24 @@ def model_range_checks(model, data_info: dict, u, dt, column: str = "input", *, 
         x = hysteresis_values(model, u, dt)
         if x is not None:
             checks.append(branch_check(x, data_info["trained_branches"], dt=dt, t0=t0))
+    return _said_held(model, checks)
+
+
+#: The end of a range warning for a model that extrapolates, and the one for a model that holds its input there.
+_EXTRAPOLATES = "; the model extrapolates there, and a hysteresis model keeps a memory of the excursion afterwards"
+_HOLDS = (
+    "; the model holds its hysteresis input at the edge of that range there (fit.json settings.hold_input) instead of "
+    "extrapolating, so it predicts no response beyond it"
+)
+
+
+def _said_held(model, checks):
+    """Range warnings of a model whose hysteresis holds its input (`AbstractHysteresis.with_held`) say so."""
+    from ._hysteresis import hysteresis_of
+
+    h = hysteresis_of(model)
+    if getattr(h, "held", None) is not None:
+        for chk in checks:
+            if chk.get("warning") and chk.get("what") in ("input", "effective input"):
+                chk["warning"] = chk["warning"].replace(_EXTRAPOLATES, _HOLDS)
     return checks

@@ -40,6 +40,7 @@ from ..identify._choose import (
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
+from ..identify._hold import check_hold_input, hold_fitted
 from ..identify._metrics import metrics, noise_floor, noise_floor_note
 from ..identify._split import interpolated_note, split_masks
 from ..identify._spread import sweep_spread
@@ -225,11 +226,19 @@ def fit_record(record, *, model="auto", progress=False, **options):
     ``max_steps`` (300), ``thresholds`` / ``tilts`` (None), ``grid`` (dict of ``n_sym``, ``n_alpha``, ``n_asym``,
     ``poly_order``), ``orientation``, ``thermal_start``, ``sees``, ``memory`` (all "auto"), ``refit`` (True; the
     flag is ``--no-refit``), ``gain_prior`` (1.0, None for plain least squares), ``early_stopping``, ``median`` and
-    ``sparse_grid`` (False).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
+    ``sparse_grid`` (False), ``hold_input`` ("auto": the saved model's hysteresis holds a directly measured input to its
+    trained range, `smafl_jax.identify._hold`).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
     a model as given, without the screening or the split.
     """
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
+    hold = check_hold_input(options.pop("hold_input", "auto"))
+    fitted, doc, masks = _fit_record(record, model, progress, options)
+    return hold_fitted(fitted, doc, hold), doc, masks
+
+
+def _fit_record(record, model, progress, options):
+    """`fit_record` before the saved model's input is held (`hold_fitted`)."""
     median = bool(options.pop("median", False))
     sparse = bool(options.pop("sparse_grid", False))
     slow = options.pop("slow_mode", "auto")

@@ -1,0 +1,80 @@
+"""The saved model's input held to its trained range (``fit_record(hold_input=...)``, ``smafl fit --hold-input``).
+
+Outside the range a model was fitted on, its play operators and polynomial extrapolate without a physical meaning, and
+a hysteresis keeps the memory of the excursion for good.  Measured (session 61):
+
+- measured inputs on real rigs, each run predicted by the joint fit of the other runs of its family: held, the NiTi
+  electric run whose thermocouple spiked to 220 C went 13.6 -> 2.2 and the water run that went down to -2.6 C (the
+  others stayed above 23.6 C) 10.4 -> 1.2 length units; the other 7 NiTi runs and the 4 pneumatic cavatappi runs
+  stayed within 1 % (13 runs: held out vs the static cubic, gm electric 0.956 -> 0.663, water 1.322 -> 0.773);
+- a drive voltage's thermal state on independent simulated plants, held to its trained range: worse. Plant A, four
+  records with one stretch above the trained voltage (held out / noise): 35 -> 112, 35 -> 340, 47 -> 340, 16 -> 27
+  (also after the stretch: 55 -> 421 on one); plant B seed 39, 7 records: gm 14.8 -> 20.4.
+
+A hotter thermal state from a stronger drive is a state the plant really reaches, and its response goes on; a measured
+temperature or pressure beyond the trained range was there a sensor glitch or a material past its transformation.  So
+``"auto"`` holds a model whose hysteresis sees the measured input directly, and lets a cascade extrapolate.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .._errors import UserInputError
+from ..models._hysteresis import hysteresis_of, thermal_of
+
+#: ``hold_input`` choices: "auto" (a model that sees its measured input directly), "on" (a cascade's thermal state
+#: too), "off" (none: every model extrapolates).
+HOLD_INPUT = ("auto", "on", "off")
+
+
+def check_hold_input(rule: str) -> str:
+    """``rule`` if it is one of `HOLD_INPUT`, else a `UserInputError` naming them."""
+    if rule not in HOLD_INPUT:
+        raise UserInputError(f"unknown hold_input {rule!r}; choose one of {HOLD_INPUT}")
+    return rule
+
+
+def hold_fitted(model: Any, doc: dict, rule: str = "auto") -> Any:
+    """``model`` with its hysteresis holding its input to the trained range in ``doc["data"]`` by ``rule``
+    (`HOLD_INPUT`); ``doc["settings"]["hold_input"]`` (in place) says what was held and why.  On the training samples
+    the held model is the fitted one (the range is theirs)."""
+    check_hold_input(rule)
+    h = hysteresis_of(model)
+    data = doc.get("data") or {}
+    cascade = thermal_of(model) is not None
+    direct = h is not None and model is h
+    key = "effective_input_range" if cascade else "input_range"
+    rng = data.get(key)
+    entry = {"rule": rule, "held": None}
+    if h is None or not hasattr(h, "held") or not (direct or (cascade and hasattr(model, "with_hysteresis"))):
+        entry["why"] = "the model has no hysteresis input to hold"
+    elif rule == "off":
+        entry["why"] = "hold_input off: the model extrapolates outside its trained range"
+    elif rule == "auto" and not direct:
+        entry["why"] = (
+            "a drive's thermal state beyond its trained range is a state the plant reaches, and its response goes on: "
+            "the cascade extrapolates (hold_input on holds it)"
+        )
+    elif not (isinstance(rng, (list, tuple)) and len(rng) == 2 and rng[1] > rng[0]):
+        entry["why"] = f"no trained {key.replace('_', ' ')} in the fit: nothing to hold to"
+    else:
+        from .._io import model_to_dict
+
+        model = model.with_hysteresis(h.with_held(rng[0], rng[1]))
+        if "model" in doc:  # the fit.json's saved model is the held one
+            doc["model"] = model_to_dict(model)
+        entry.update(
+            held=[float(rng[0]), float(rng[1])],
+            of=key,
+            why=(
+                "the hysteresis holds its input to the trained range: outside it the model does not extrapolate"
+                + (
+                    " (a measured input beyond its range: a sensor glitch or a material past its transformation)"
+                    if direct
+                    else ""
+                )
+            ),
+        )
+    doc.setdefault("settings", {})["hold_input"] = entry
+    return model
