@@ -415,7 +415,7 @@ def test_fold_sse_matches_a_numpy_blocked_cross_validation(rng):
     # symmetric operators only: on these reversals the tilted ones coincide over some folds' training rows, and
     # then the gains (not the fit) are not unique and the two solvers may split them differently
     model = sj.EUPI.from_range(0.0, 7.4, n_sym=6, n_asym=0)
-    truth = model.with_linear_weights(jnp.asarray(np.abs(np.random.default_rng(5).normal(size=model.linear_weights().shape[0]))))
+    truth = _trained_eupi(np.random.default_rng(5))
     y = np.asarray(truth.simulate(u)) + 0.01 * rng.normal(size=u.size)
     w = np.ones(u.size)
     w[:20] = 0.0  # samples without weight are in no fold and never train

@@ -52,24 +52,6 @@ def test_eupi_bad_configuration():
         m.with_linear_weights(np.zeros(3))
 
 
-def test_threshold_grid_rules():
-    """Symmetric thresholds uniform (i / 2n), unparallel ones an octave apart up to 0.5: the asymmetric operators
-    shared across tilts reach nearer the diagonal, and the uniform rule's 0.125, 0.25 and 0.5 stay on the grid."""
-    np.testing.assert_allclose(sj.threshold_grid(4), [0.125, 0.25, 0.375, 0.5])
-    np.testing.assert_allclose(sj.threshold_grid(4, "octave"), [0.0625, 0.125, 0.25, 0.5])
-    assert set(sj.threshold_grid(4)) - set(sj.threshold_grid(5, "octave")) == {0.375}  # the old default, all but one
-    for n in (0, 1, 2):  # up to two thresholds the rules agree (the sparse grid is unchanged)
-        np.testing.assert_allclose(sj.threshold_grid(n, "octave"), sj.threshold_grid(n))
-    m = sj.EUPI.from_range(0.0, 1.0)
-    np.testing.assert_allclose(m.r_sym, sj.threshold_grid(8))
-    np.testing.assert_allclose(m.r_asym, sj.threshold_grid(5, "octave"))
-    assert np.shape(m.w) == (4, 5) and sj.EUPI.DEFAULT_GRID["n_asym"] == 5
-    with pytest.raises(ValueError, match="spacing"):
-        sj.threshold_grid(4, "log")
-    with pytest.raises(ValueError, match=">= 0"):
-        sj.threshold_grid(-1)
-
-
 def test_lag_settles_within_a_number_of_samples():
     """`settles_within`: the lag's time constant against ``samples`` samples of ``dt`` (auto's static-class gate)."""
     th = sj.JouleThermal(k1=jnp.asarray(0.019), k2=jnp.asarray(0.05))  # the SMA wing's fitted lag: 53 s

@@ -157,7 +157,7 @@ def add_parser(sub):
     )
     p.add_argument("--n-sym", type=int, default=8, help="symmetric play operators (default 8)")
     p.add_argument("--n-alpha", type=int, default=4, help="tilts of unparallel operators (default 4)")
-    p.add_argument("--n-asym", type=int, default=5, help="thresholds per tilt, an octave apart up to half the span (default 5)")
+    p.add_argument("--n-asym", type=int, default=4, help="thresholds per tilt (default 4)")
     p.add_argument("--poly-order", type=int, default=3, help="polynomial order (default 3, as in the paper)")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
     p.set_defaults(func=run)

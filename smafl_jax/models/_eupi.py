@@ -34,10 +34,9 @@ operator at a trained position between its two bounds at the first input
 (``memory``: one logit per operator, 0 = midway, large = descended, very
 negative = ascended), for records that start on an unknown branch.
 
-Grid rule (`EUPI.from_range`): ``n`` symmetric thresholds ``r_i = i / (2 n)``,
+Grid rule (`EUPI.from_range`): ``n`` thresholds ``r_i = i / (2 n)``,
 i = 1..n, i.e. from ``span/(2n)`` to half the input span (an operator of
-threshold >= span/2 can no longer reverse inside the data range); unparallel
-thresholds an octave apart up to half the span (`threshold_grid`); tilts
+threshold >= span/2 can no longer reverse inside the data range); tilts
 geometrically spaced in [0.4, 2.5] (both sides of the symmetric tilt 1).
 """
 
@@ -88,24 +87,11 @@ _ABOVE_ALL = 1e30
 DESCENDED_LOGIT = 5.0
 
 
-def threshold_grid(n: int, spacing: str = "uniform") -> np.ndarray:
-    """Threshold rule on the normalised input, up to half the span.
-
-    ``"uniform"``: ``r_i = i / (2 n)``, i = 1..n (the symmetric operators).  ``"octave"``: ``r_i = 0.5 / 2^(n - i)``,
-    each half the next (the unparallel operators; the default n = 5: 1/32 .. 0.5; n <= 2 as uniform).  Why octaves
-    there: the unparallel grid shares each threshold across every tilt, so its few thresholds decide how close to the
-    diagonal an asymmetric operator can sit, and training them did not bring one from 0.125 down to 0.013 (an
-    independent plant held out at 2.4x the noise with the uniform rule and 1.0x with its own thresholds, session 58).
-    Five octaves hold the old default's 0.125, 0.25 and 0.5, so a plant on that grid is still (nearly) on this one.
-    """
-    n = int(n)
-    if n < 0:
+def threshold_grid(n: int) -> np.ndarray:
+    """Documented threshold rule on the normalised input: ``r_i = i / (2 n)``, i = 1..n."""
+    if int(n) < 0:
         raise ValueError(f"number of thresholds must be >= 0, got {n}")
-    if spacing == "uniform":
-        return np.arange(1, n + 1, dtype=np.float64) / (2.0 * max(n, 1))
-    if spacing != "octave":
-        raise ValueError(f"threshold spacing must be 'uniform' or 'octave', got {spacing!r}")
-    return 0.5 / 2.0 ** (n - np.arange(1, n + 1, dtype=np.float64))
+    return np.arange(1, int(n) + 1, dtype=np.float64) / (2.0 * max(int(n), 1))
 
 
 def tilt_grid(n: int, lo: float = 0.4, hi: float = 2.5) -> np.ndarray:
@@ -133,9 +119,8 @@ class EUPI(AbstractHysteresis):
     INITS = _INITS
     # "consistent" equals "zero" for a first input at or above u_ref (every input of the default grids)
     RULE_INITS = ("descended", "zero", "from_top")
-    #: Operator grid of `from_range` (the ``smafl fit --n-sym / --n-alpha / --n-asym`` defaults): 8 + 4 x 5 operators
-    #: (five unparallel thresholds per tilt, an octave apart: `threshold_grid`; session 60, was 4 uniform).
-    DEFAULT_GRID = MappingProxyType({"n_sym": 8, "n_alpha": 4, "n_asym": 5})
+    #: Operator grid of `from_range` (the ``smafl fit --n-sym / --n-alpha / --n-asym`` defaults): 8 + 4 x 4 operators.
+    DEFAULT_GRID = MappingProxyType({"n_sym": 8, "n_alpha": 4, "n_asym": 4})
     #: The sparse grid ``smafl fit --sparse-grid`` adds to ``--model auto``'s candidates behind a drive's thermal lag
     #: (8 operators instead of 24; `smafl_jax.identify.auto_candidates`).  Why: with trained thresholds and tilts the
     #: default grid can fit a record's first 70 % at the noise and miss the rest at 11-14x, two gain solutions the training
@@ -201,7 +186,7 @@ class EUPI(AbstractHysteresis):
         *,
         n_sym=8,
         n_alpha=4,
-        n_asym=5,
+        n_asym=4,
         poly_order=3,
         u_ref=None,
         init="descended",
@@ -231,7 +216,7 @@ class EUPI(AbstractHysteresis):
             poly=jnp.zeros(int(poly_order) - 1),
             offset=jnp.asarray(0.0),
             r_sym=jnp.asarray(threshold_grid(n_sym)),
-            r_asym=jnp.asarray(threshold_grid(n_asym, "octave") if n_alpha else np.zeros(0)),
+            r_asym=jnp.asarray(threshold_grid(n_asym) if n_alpha else np.zeros(0)),
             alpha=jnp.asarray(tilt_grid(n_alpha)),
             u_ref=jnp.asarray(ref),
             u_span=jnp.asarray(span),
@@ -310,12 +295,11 @@ class EUPI(AbstractHysteresis):
         return ("u_ref", "u_span", *grids)
 
     def nonlinear_priors(self):
-        """Thresholds (normalised input) lognormal around their grid's scale (symmetric 0.25; unparallel 0.1, near the
-        geometric middle of the octave grid 1/32-0.5, wide enough for both ends), tilts around 1 (symmetric), and the
+        """Thresholds (normalised input) lognormal around the grid's scale 0.25, tilts around 1 (symmetric), and the
         fitted memory's logits normal(0, 4), which keeps walkers off +-inf."""
         return {
             "r_sym": ("lognormal", math.log(0.25), 1.0),
-            "r_asym": ("lognormal", math.log(0.1), 1.5),
+            "r_asym": ("lognormal", math.log(0.25), 1.0),
             "alpha": ("lognormal", 0.0, 1.0),
             "memory": ("normal", 0.0, 4.0),
         }

@@ -89,7 +89,7 @@ K2_NOTE = (
 )
 
 
-def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=5, poly_order=3, u_ref="auto", slow_mode=False):
+def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_ref="auto", slow_mode=False):
     """Untrained model of ``kind`` for the record's input range.
 
     ``u_ref="auto"``: 0 for voltage inputs (column name containing "volt",
