@@ -7,9 +7,10 @@ a hysteresis keeps the memory of the excursion for good.  Measured (session 61):
   electric run whose thermocouple spiked to 220 C went 13.6 -> 2.2 and the water run that went down to -2.6 C (the
   others stayed above 23.6 C) 10.4 -> 1.2 length units; the other 7 NiTi runs and the 4 pneumatic cavatappi runs
   stayed within 1 % (13 runs: held out vs the static cubic, gm electric 0.956 -> 0.663, water 1.322 -> 0.773);
-- a drive voltage's thermal state on independent simulated plants, held to its trained range: worse. Plant A, four
-  records with one stretch above the trained voltage (held out / noise): 35 -> 112, 35 -> 340, 47 -> 340, 16 -> 27
-  (also after the stretch: 55 -> 421 on one); plant B seed 39, 7 records: gm 14.8 -> 20.4.
+- a drive voltage's thermal state on independent simulated plants, held to its trained range: worse. Plant A, six
+  records with one stretch above the trained voltage (held out / noise): 35 -> 112, 35 -> 340, 47 -> 340, 16 -> 27,
+  111 -> 368, 12 -> 49 (also after the stretch, back in range: 55 -> 421 on one); plant B seed 39, 7 records: gm
+  14.8 -> 20.4 (three worse, one better: 67 -> 11).
 
 A hotter thermal state from a stronger drive is a state the plant really reaches, and its response goes on; a measured
 temperature or pressure beyond the trained range was there a sensor glitch or a material past its transformation.  So
