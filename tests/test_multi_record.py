@@ -123,7 +123,8 @@ def test_cli_fit_several_files_folder_and_glob(tmp_path, capsys):
     assert "leave-one-record-out mean" in out and "held out run1" in out
     got = re.search(r"held out run1: rmse [0-9.e+-]+ \(([0-9.e+-]+)x its noise\)", out)  # over that record's own noise SD
     fold = doc["validation"]["folds"][1]
-    assert float(got.group(1)) == pytest.approx(fold["model"]["rmse"] / doc["metrics"]["noise"]["per_record_sd"][1], rel=2e-3)
+    # printed to 3 significant digits: at most 0.5 % off
+    assert float(got.group(1)) == pytest.approx(fold["model"]["rmse"] / doc["metrics"]["noise"]["per_record_sd"][1], rel=5e-3)
     assert cli_main(["fit", str(d / "run*.csv"), "--out", str(tmp_path / "o2"), "--split", "none"] + common) == 0
     assert json.loads((tmp_path / "o2" / "fit.json").read_text())["validation"]["folds"] == []
     # the simulate input-range check reads the joint model's training range
