@@ -6,17 +6,6 @@ import numpy as np, indep_plant as ip, smafl_jax as sj
 sys.path.insert(0, "/tmp/s61")
 from clip_probe_lib import sim_clipped as _sc, sim_ops_held
 from smafl_jax.report import fit_record
-from smafl_jax.models._hysteresis import hysteresis_of, thermal_of
-
-def sim_clipped(model, u, dt, rng):
-    h = hysteresis_of(model)
-    if thermal_of(model) is not None:
-        x = np.asarray(model.hysteresis_input(u, dt))
-    elif model is h:
-        x = np.asarray(u)
-    else:
-        return None
-    return np.asarray(h.simulate(np.clip(x, rng[0], rng[1])))
 
 KW = dict(drive=sys.argv[2] if len(sys.argv) > 2 else "multisine", rate_hz=25, start="cold", minutes=10.0)
 rows = []

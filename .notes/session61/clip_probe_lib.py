@@ -1,30 +1,29 @@
 import numpy as np
 from smafl_jax.models._hysteresis import hysteresis_of, thermal_of
-def sim_clipped(model, u, dt, rng):
+
+
+def _hyst_input(model, u, dt):
+    """(hysteresis, what it sees along u) for a Cascade or a hysteresis on its own, else (None, None)."""
     h = hysteresis_of(model)
-    if h is None: return None
+    if h is None:
+        return None, None
     if thermal_of(model) is not None:
-        if type(model).__name__ != "Cascade": return None
-        x = np.asarray(model.hysteresis_input(u, dt))
-    elif model is h:
-        x = np.asarray(u)
-    else:
-        return None
-    return np.asarray(h.simulate(np.clip(x, rng[0], rng[1])))
+        return (h, np.asarray(model.hysteresis_input(u, dt))) if type(model).__name__ == "Cascade" else (None, None)
+    return (h, np.asarray(u)) if model is h else (None, None)
+
+
+def sim_clipped(model, u, dt, rng):
+    h, x = _hyst_input(model, u, dt)
+    return None if h is None else np.asarray(h.simulate(np.clip(x, rng[0], rng[1])))
+
 
 def sim_ops_held(model, u, dt, rng):
     """EUPI only: the play operators see the input held to rng; the linear and polynomial terms see it as is."""
     import jax.numpy as jnp
     from smafl_jax.models._eupi import poly_columns
     from smafl_jax.models._operators import play_weighted
-    h = hysteresis_of(model)
-    if h is None or type(h).__name__ != "EUPI": return None
-    if thermal_of(model) is not None:
-        if type(model).__name__ != "Cascade": return None
-        x = np.asarray(model.hysteresis_input(u, dt))
-    elif model is h:
-        x = np.asarray(u)
-    else:
+    h, x = _hyst_input(model, u, dt)
+    if h is None or type(h).__name__ != "EUPI":
         return None
     s = h.normalise(x); sc = h.normalise(np.clip(x, rng[0], rng[1]))
     r, a = h._bank(); w = jnp.concatenate([h.v, jnp.ravel(h.w)])
