@@ -64,10 +64,9 @@ def short_indep_record(tmp_path_factory):
     return sj.load_record(path)
 
 
-@pytest.fixture(scope="module")
-def stand_in_record(tmp_path_factory):
-    """A short voltage-driven record of the direct-input plant (Preisach, steps), loaded as a user would: the record
-    behind tests that fit stand-in candidates through `choose_structure`."""
+def _direct_record_csv(path, seed, input_column, **kw):
+    """A steps record of the independent direct-input plant (Preisach) written to ``path`` as a user's CSV
+    (``time_s``, ``input_column``, ``displacement_mm``) and loaded; ``kw``: `indep_direct.make_record` options."""
     import sys
 
     import numpy as np
@@ -77,8 +76,21 @@ def stand_in_record(tmp_path_factory):
     sys.path.insert(0, str(Path(__file__).parent))
     import indep_direct
 
-    r = indep_direct.make_record(6, "preisach", "steps", n=400, dt=0.05, u_lo=0.2, u_span=6.0)
-    path = tmp_path_factory.mktemp("stand_in") / "v.csv"
-    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,voltage_V,displacement_mm",
+    r = indep_direct.make_record(seed, "preisach", "steps", **kw)
+    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header=f"time_s,{input_column},displacement_mm",
                comments="", fmt="%.9g")  # fmt: skip
     return sj.load_record(path)
+
+
+@pytest.fixture(scope="module")
+def stand_in_record(tmp_path_factory):
+    """A short voltage-driven record of the direct-input plant (Preisach, steps), loaded as a user would: the record
+    behind tests that fit stand-in candidates through `choose_structure`."""
+    path = tmp_path_factory.mktemp("stand_in") / "v.csv"
+    return _direct_record_csv(path, 6, "voltage_V", n=400, dt=0.05, u_lo=0.2, u_span=6.0)
+
+
+@pytest.fixture(scope="session")
+def direct_record_csv():
+    """`_direct_record_csv`: ``(path, seed, input_column, **make_record options) -> Record``."""
+    return _direct_record_csv

@@ -57,16 +57,10 @@ def test_held_range_saves_loads_and_is_described(tmp_path, rng):
 
 
 @pytest.fixture(scope="module")
-def temperature_record(tmp_path_factory):
+def temperature_record(tmp_path_factory, direct_record_csv):
     """A temperature-driven record of the independent direct-input plant."""
-    sys.path.insert(0, str(Path(__file__).parent))
-    import indep_direct
-
-    r = indep_direct.make_record(3, "preisach", "steps", n=500, dt=0.1, u_lo=25.0, u_span=50.0)
     path = tmp_path_factory.mktemp("hold") / "t.csv"
-    np.savetxt(path, np.column_stack([r["t"], r["u"], r["y"]]), delimiter=",", header="time_s,temperature_C,displacement_mm",
-               comments="", fmt="%.9g")  # fmt: skip
-    return sj.load_record(path)
+    return direct_record_csv(path, 3, "temperature_C", n=500, dt=0.1, u_lo=25.0, u_span=50.0)
 
 
 def test_fit_holds_a_directly_measured_input_and_not_a_drive_by_default(temperature_record):
@@ -108,6 +102,7 @@ def test_a_cascade_extrapolates_unless_asked(tmp_path):
 def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):
     """A joint fit's folds are held to their own training records' range, as the saved model is: a held-out record
     that leaves that range is predicted alike up to its first exit and differently after it."""
+    sys.path.insert(0, str(Path(__file__).parent))
     import indep_direct
 
     recs = []
