@@ -123,3 +123,15 @@ def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):
     assert np.max(np.abs(a[first:] - b[first:])) > 1e-6
     with pytest.raises(UserInputError, match="hold_input"):
         sj.fit_records(recs, hold_input="sometimes", **opts)
+
+
+def test_the_split_model_is_scored_held_to_its_training_part(temperature_record):
+    """The validation error (and the class comparison) is that of the split model as it would be saved: held to the
+    range of its own training samples, while the saved model is held to the whole record's."""
+    model, doc, (train, val, _) = fit_record(temperature_record, model="eupi", max_steps=3)
+    u = temperature_record.u
+    split = sj.model_from_dict(doc["split_model"])
+    assert split.held == (float(u[train].min()), float(u[train].max()))
+    assert model.held == (float(u.min()), float(u.max()))
+    want = sj.metrics(temperature_record.y[val], np.asarray(sj.simulate(split, u))[val])["rmse"]
+    assert doc["metrics"]["validation"]["rmse"] == pytest.approx(want, rel=1e-9)

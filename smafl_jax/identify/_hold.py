@@ -79,3 +79,22 @@ def hold_fitted(model: Any, doc: dict, rule: str = "auto") -> Any:
         )
     doc.setdefault("settings", {})["hold_input"] = entry
     return model
+
+
+def hold_on(model: Any, segments, rule: str = "auto") -> Any:
+    """``model`` held by ``rule`` to the range of the samples it was trained on, ``segments`` = ``[(record, mask or
+    None), ...]`` (each record run by its own start): what a split fit's or a leave-one-record-out fold's model is scored
+    with, so that its held-out error is that of the model as it will be saved (`hold_fitted`)."""
+    import numpy as np
+
+    from ..models._hysteresis import record_model
+    from ..models._range import effective_range, value_range
+
+    check_hold_input(rule)
+    masks = [np.ones(len(r), bool) if m is None else np.asarray(m, bool) for r, m in segments]
+    data = {"input_range": value_range(np.concatenate([np.asarray(r.u)[m] for (r, _), m in zip(segments, masks)]))}
+    if rule == "on" and thermal_of(model) is not None:
+        eff = effective_range([(record_model(model, i), r.u, r.dt, m) for i, ((r, _), m) in enumerate(zip(segments, masks))])
+        if eff is not None:
+            data["effective_input_range"] = eff
+    return hold_fitted(model, {"data": data}, rule)

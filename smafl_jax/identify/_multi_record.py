@@ -41,7 +41,7 @@ from ..models._range import value_range
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._gain_prior import GAIN_PRIOR
-from ._hold import check_hold_input, hold_fitted
+from ._hold import check_hold_input, hold_fitted, hold_on
 from ._metrics import metrics, noise_floor, noise_floor_note
 from ._split import interpolated_note
 
@@ -541,11 +541,8 @@ def _fit_records_structure(
             say(f"leave-one-record-out fold {i + 1}/{len(records)}: {names[i]} held out, {len(train)} records train")
             t0 = time.perf_counter()
             res_i, info_i = _joint_fit(train, model=model, progress=False, **fit_kw)
-            # the fold model held as the saved one will be (`hold_fitted`), to the range of its own training records
-            fold_data = {"input_range": _input_range(train)}
-            if opts["hold_input"] == "on" and thermal_of(res_i.model) is not None:
-                fold_data.update(_trained_hysteresis(res_i.model, train))
-            res_i = res_i._replace(model=hold_fitted(res_i.model, {"data": fold_data}, opts["hold_input"]))
+            # the fold model held as the saved one will be, to the range of its own training records
+            res_i = res_i._replace(model=hold_on(res_i.model, [(r, None) for r in train], opts["hold_input"]))
             y_i, scored, start_i = _heldout(res_i.model, info_i, rec)
             finite = bool(np.all(np.isfinite(y_i)))
             m_i = metrics(rec.y[scored], y_i[scored]) if finite else None

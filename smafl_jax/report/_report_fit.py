@@ -40,7 +40,7 @@ from ..identify._choose import (
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
-from ..identify._hold import check_hold_input, hold_fitted
+from ..identify._hold import check_hold_input, hold_fitted, hold_on
 from ..identify._metrics import metrics, noise_floor, noise_floor_note
 from ..identify._split import interpolated_note, split_masks
 from ..identify._spread import sweep_spread
@@ -232,7 +232,7 @@ def fit_record(record, *, model="auto", progress=False, **options):
     """
     if record.y is None:
         raise UserInputError(f"{record.path}: no output column to fit")
-    hold = check_hold_input(options.pop("hold_input", "auto"))
+    hold = check_hold_input(options.get("hold_input", "auto"))
     fitted, doc, masks = _fit_record(record, model, progress, options)
     return hold_fitted(fitted, doc, hold), doc, masks
 
@@ -917,6 +917,7 @@ def _fit_structure(
     early_refit=False,
     slow_mode=False,
     warm_start=None,
+    hold_input="auto",
 ):
     """`fit_record` of one structure (``model`` a name, or "auto" for the structure `auto_structure` names).
 
@@ -928,7 +929,8 @@ def _fit_structure(
     refinement stops on the validation samples (`_refine_early_stopped`; off by default: measured mixed, see there).
     ``early_refit`` (with ``defer_refit``; `fit_record` sets it for the default class): when the split refinement was
     rejected, the whole-record refit starts on a side thread before the split fit's polish (`Candidate.pending`).
-    ``slow_mode``: a cascade gets a slow thermal mode (`slow_thermal_start`), trained with the rest; ``warm_start`` (with
+    ``hold_input``: the split model is scored held to its training part's range by this rule (`hold_on`), as the saved
+    model is held to the whole record's by `fit_record`.  ``slow_mode``: a cascade gets a slow thermal mode (`slow_thermal_start`), trained with the rest; ``warm_start`` (with
     ``slow_mode``): the same class's one-mode split fit, which the slow mode is added to (`slow_warm_start`) in place of
     the start screening (its output sign, hysteresis input and memory rule kept)."""
     if warm_start is not None and not slow_mode:
@@ -1158,6 +1160,8 @@ def _fit_structure(
         spread = _memory_spread(memory_runs[chosen], rec, record.y[train], notes) if len(memory_runs[chosen]) > 1 else None
         if view_info and max_steps > 0:
             res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress, gain_prior))
+        # scored (and compared with the other classes) as the saved model will run: held to its training part's range
+        res = res._replace(model=hold_on(res.model, [(record, train)], hold_input))
         yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
         if not np.all(np.isfinite(yhat)):
             raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
