@@ -63,19 +63,25 @@ def temperature_record(tmp_path_factory, direct_record_csv):
     return direct_record_csv(path, 3, "temperature_C", n=500, dt=0.1, u_lo=25.0, u_span=50.0)
 
 
-def test_fit_holds_a_directly_measured_input_and_not_a_drive_by_default(temperature_record):
+def test_fit_holds_a_directly_measured_input_unless_its_validation_says_otherwise(temperature_record):
     opts = dict(model="eupi", max_steps=3, refit=False)
-    model, doc, _ = fit_record(temperature_record, **opts)
+    model, doc, (train, _, _) = fit_record(temperature_record, hold_input="on", **opts)
     entry = doc["settings"]["hold_input"]
-    assert entry["rule"] == "auto" and entry["of"] == "input_range"
+    assert entry["rule"] == "on" and entry["of"] == "input_range"
     assert model.held == tuple(entry["held"]) == tuple(doc["data"]["input_range"])
     assert sj.model_from_dict(doc["model"]).held == model.held  # fit.json saves the held model
     off, doc_off, _ = fit_record(temperature_record, hold_input="off", **opts)
     assert off.held is None and doc_off["settings"]["hold_input"]["held"] is None
-    # on the record it was fitted on the held model is the fitted one: the range is its training samples'
-    _, _, (train, _, _) = fit_record(temperature_record, **opts)
+    # on the samples it was fitted on the held model is the fitted one: the range is theirs
     u = temperature_record.u[train]
     np.testing.assert_array_equal(np.asarray(sj.simulate(model, u)), np.asarray(sj.simulate(off, u)))
+    # auto: held, unless the validation samples (here beyond the training part's range) are predicted better extrapolating
+    auto, doc_auto, _ = fit_record(temperature_record, **opts)
+    check = doc_auto["settings"]["hold_input_check"]
+    assert check["on"] == "the validation samples" and check["rmse_held"] != check["rmse_extrapolating"]
+    better = "extrapolating" if check["rmse_extrapolating"] < check["rmse_held"] else "held"
+    assert check["chosen"] == better and (auto.held is None) == (better == "extrapolating")
+    assert doc_auto["metrics"]["validation"]["rmse"] == pytest.approx(min(check["rmse_held"], check["rmse_extrapolating"]))
     with pytest.raises(UserInputError, match="hold_input"):
         fit_record(temperature_record, hold_input="yes", **opts)
 
@@ -110,8 +116,13 @@ def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):
         r = indep_direct.make_record(seed, "preisach", "steps", n=300, dt=0.1, u_lo=lo, u_span=span)
         recs.append(sj.Record.from_arrays(r["t"], r["u"], r["y"], input_name="temperature_C", output_name="x_mm"))
     opts = dict(model="eupi", max_steps=2)
-    _, doc, held = sj.fit_records(recs, **opts)
+    _, doc, held = sj.fit_records(recs, hold_input="on", **opts)
     _, doc_off, free = sj.fit_records(recs, hold_input="off", **opts)
+    auto, doc_auto, _ = sj.fit_records(recs, **opts)  # auto: the folds' pooled held-out error decides
+    check = doc_auto["settings"]["hold_input_check"]
+    better = "extrapolating" if check["rmse_extrapolating"] < check["rmse_held"] else "held"
+    assert check["on"] == "the leave-one-record-out folds" and check["chosen"] == better
+    assert (auto.held is None) == (better == "extrapolating")
     assert doc["settings"]["hold_input"]["held"] == doc["data"]["input_range"]
     assert doc_off["settings"]["hold_input"]["held"] is None
     lo, hi = (min(r.u.min() for r in recs[:2]), max(r.u.max() for r in recs[:2]))
@@ -128,7 +139,7 @@ def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):
 def test_the_split_model_is_scored_held_to_its_training_part(temperature_record):
     """The validation error (and the class comparison) is that of the split model as it would be saved: held to the
     range of its own training samples, while the saved model is held to the whole record's."""
-    model, doc, (train, val, _) = fit_record(temperature_record, model="eupi", max_steps=3)
+    model, doc, (train, val, _) = fit_record(temperature_record, model="eupi", max_steps=3, hold_input="on")
     u = temperature_record.u
     split = sj.model_from_dict(doc["split_model"])
     assert split.held == (float(u[train].min()), float(u[train].max()))

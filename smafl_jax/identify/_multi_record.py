@@ -237,6 +237,24 @@ def _with_shared_start(model, info):
     return model.with_thermal_start(init, u0)
 
 
+def _hold_by_folds(runs, rule):
+    """Whether the leave-one-record-out folds are scored held or extrapolating (`hold_choice` over their pooled held-out
+    squared errors), and the fit.json ``settings.hold_input_check`` entry (None when no fold differs)."""
+    from ._hold import hold_choice
+
+    sse = {"held": 0.0, "extrapolating": 0.0}
+    for _, rec, _, _, _, preds, _ in runs:
+        if "extrapolating" not in preds:
+            continue
+        for way in sse:
+            y, scored, _ = preds[way]
+            sse[way] += float(np.sum((y[scored] - rec.y[scored]) ** 2))
+    if not any("extrapolating" in r[5] for r in runs):
+        return "held", None
+    n = sum(int(r[5]["held"][1].sum()) for r in runs)
+    return hold_choice(sse["held"], sse["extrapolating"], n, rule, "the leave-one-record-out folds")
+
+
 def _heldout(model, info, rec):
     """``(prediction, scored mask, start info)`` of a fold model on its held-out record.
 
@@ -534,16 +552,23 @@ def _fit_records_structure(
     squared = is_voltage(records[0].input_name, records[0].units)
     t_all = time.perf_counter()
 
-    folds, yhat_loro = [], [None] * len(records)
+    folds, yhat_loro, hold_check = [], [None] * len(records), None
     if loro:
+        runs = []
         for i, rec in enumerate(records):
             train = [r for j, r in enumerate(records) if j != i]
             say(f"leave-one-record-out fold {i + 1}/{len(records)}: {names[i]} held out, {len(train)} records train")
             t0 = time.perf_counter()
             res_i, info_i = _joint_fit(train, model=model, progress=False, **fit_kw)
-            # the fold model held as the saved one will be, to the range of its own training records
-            res_i = res_i._replace(model=hold_on(res_i.model, [(r, None) for r in train], opts["hold_input"]))
-            y_i, scored, start_i = _heldout(res_i.model, info_i, rec)
+            # the fold model held as the saved one will be, to the range of its own training records, and as fitted
+            held_i = hold_on(res_i.model, [(r, None) for r in train], opts["hold_input"])
+            preds = {"held": _heldout(held_i, info_i, rec)}
+            if held_i is not res_i.model:
+                preds["extrapolating"] = _heldout(res_i.model, info_i, rec)
+            runs.append((i, rec, train, res_i, info_i, preds, time.perf_counter() - t0))
+        way, hold_check = _hold_by_folds(runs, opts["hold_input"])
+        for i, rec, train, res_i, info_i, preds, seconds in runs:
+            y_i, scored, start_i = preds.get(way, preds["held"])
             finite = bool(np.all(np.isfinite(y_i)))
             m_i = metrics(rec.y[scored], y_i[scored]) if finite else None
             yhat_loro[i] = y_i if finite else None
@@ -560,7 +585,7 @@ def _fit_records_structure(
                     "heldout_input_range": _input_range([rec]),
                     "heldout_outside_train_range": _outside(rec.u, _input_range(train)),
                     "solver_message": res_i.message,
-                    "seconds": time.perf_counter() - t0,
+                    "seconds": seconds,
                     "note": None if finite else "the fold model gives non-finite output on this record",
                 }
             )
@@ -754,6 +779,8 @@ def _fit_records_structure(
     doc["data"].update(_trained_hysteresis(record_model, records))
     # record_model: the joint fit as fitted, each training record from its own start (`record_model(model, i)`)
     details = {"names": names, "yhat": yhat, "yhat_loro": yhat_loro, "record_model": record_model}
+    if hold_check is not None:
+        doc["settings"]["hold_input_check"] = hold_check
     return res.model, doc, details
 
 

@@ -40,7 +40,7 @@ from ..identify._choose import (
 from ..identify._decimate import fit_view
 from ..identify._fit import SOLVERS, default_trainable, fit
 from ..identify._gain_prior import GAIN_PRIOR, check_gain_prior
-from ..identify._hold import check_hold_input, hold_fitted, hold_on
+from ..identify._hold import check_hold_input, hold_choice, hold_fitted, hold_on
 from ..identify._metrics import metrics, noise_floor, noise_floor_note
 from ..identify._split import interpolated_note, split_masks
 from ..identify._spread import sweep_spread
@@ -1149,7 +1149,7 @@ def _fit_structure(
     memory_used = label
     if note:
         notes.append(note)
-    early = None
+    early, hold_check = None, None
     if early_refit and do_refit and refinement != "kept" and chosen not in finals and candidate_threads(2) > 1:
         # A split refinement rejected on validation: the whole-record refit screens afresh on every sample and takes
         # only the split fit's structure (output sign, hysteresis input, memory rule), which the polish below does not
@@ -1160,8 +1160,17 @@ def _fit_structure(
         spread = _memory_spread(memory_runs[chosen], rec, record.y[train], notes) if len(memory_runs[chosen]) > 1 else None
         if view_info and max_steps > 0:
             res = res._replace(model=_polish(res.model, record, train, solver, thresholds, tilts, progress, gain_prior))
-        # scored (and compared with the other classes) as the saved model will run: held to its training part's range
-        res = res._replace(model=hold_on(res.model, [(record, train)], hold_input))
+        # scored (and compared with the other classes) as the saved model will run: held to its training part's range,
+        # unless the validation samples, where they leave that range, are predicted better extrapolating (`hold_choice`)
+        held = hold_on(res.model, [(record, train)], hold_input)
+        if held is not res.model and val.any():
+            ok = val & record.measured
+            sse = [
+                float(np.sum((np.asarray(simulate(m, record.u, record.dt))[ok] - record.y[ok]) ** 2)) for m in (held, res.model)
+            ]
+            way, hold_check = hold_choice(*sse, int(ok.sum()), hold_input, "the validation samples")
+            held = held if way == "held" else res.model
+        res = res._replace(model=held)
         yhat = np.asarray(simulate(res.model, record.u, record.dt))  # at the record's own rate
         if not np.all(np.isfinite(yhat)):
             raise UserInputError(f"{record.path}: the fitted model gives non-finite output ({res.message})")
@@ -1242,6 +1251,7 @@ def _fit_structure(
                 "memory": memory,
                 "memory_used": memory_used,
                 "memory_spread": spread,
+                "hold_input_check": hold_check,
                 "input_choice": input_choice,
                 "start_screening": screening,
                 "split": split_info["kind"],
