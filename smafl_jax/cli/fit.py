@@ -141,7 +141,8 @@ def add_parser(sub):
         choices=("auto", "on", "off"),
         default="auto",
         help="the saved model's hysteresis holds its input to the trained range, so that it does not extrapolate outside "
-        "it: 'auto' (default) for a directly measured input (temperature, pressure), 'on' a cascade's thermal state too, "
+        "it: 'auto' (default) a directly measured input (temperature, pressure), unless the validation samples beyond the "
+        "training range are predicted better extrapolating; 'on' always, a cascade's thermal state too; "
         "'off' never (fit.json settings.hold_input; session 61: NiTi runs past the trained temperatures 13.6 -> 2.2 and "
         "10.4 -> 1.2, a drive's thermal state held on simulated plants worse)",
     )

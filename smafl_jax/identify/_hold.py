@@ -13,8 +13,11 @@ a hysteresis keeps the memory of the excursion for good.  Measured (session 61):
   14.8 -> 20.4 (three worse, one better: 67 -> 11).
 
 A hotter thermal state from a stronger drive is a state the plant really reaches, and its response goes on; a measured
-temperature or pressure beyond the trained range was there a sensor glitch or a material past its transformation.  So
-``"auto"`` holds a model whose hysteresis sees the measured input directly, and lets a cascade extrapolate.
+temperature beyond the trained range was there a sensor glitch or a wire past its transformation, but a pneumatic
+muscle goes on extending with pressure (cavatappi s2_t1's validation block, beyond its training pressures: 0.38
+extrapolating, 1.17 held).  So ``"auto"`` holds a model whose hysteresis sees the measured input directly, unless the
+held-out samples that leave the training range (a one-record fit's validation samples, a joint fit's
+leave-one-record-out folds) are predicted better extrapolating (`hold_choice`), and lets a cascade extrapolate.
 """
 
 from __future__ import annotations
