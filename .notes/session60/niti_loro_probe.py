@@ -12,20 +12,22 @@ from smafl_jax.identify._baselines import fit_static_poly
 
 D = "/work/shared/data/real/"
 FAM = {"electric": [f"niti_wire_electric_0{i}.csv" for i in range(1, 6)],
-       "water": [f"niti_wire_water_step_0{i}.csv" for i in range(1, 5)]}
+       "water": [f"niti_wire_water_step_0{i}.csv" for i in range(1, 5)],
+       "cavatappi": [f"cavatappi_pneumatic_200g_{s}.csv" for s in ("s1_t1", "s1_t2", "s2_t1", "s3_t1")]}
 rows = []
 for fam, names in FAM.items():
-    recs = {n: sj.load_record(D + n, input="temperature_front_C", output="length_signal") for n in names}
+    kw = dict(input="pressure", output="displacement_mm", resample=0.01) if fam == "cavatappi" else dict(input="temperature_front_C", output="length_signal")
+    recs = {n: sj.load_record(D + n, **kw) for n in names}
     for test in names:
         train = [recs[n] for n in names if n != test]
         t0 = time.time()
         model, doc, _ = sj.fit_records(train, split="none")
         R = recs[test]
         yh = np.asarray(sj.simulate(model, R.u, R.dt))
-        rmse = float(np.sqrt(np.mean((yh - R.y) ** 2)))
+        ok = R.measured & np.isfinite(R.y); rmse = float(np.sqrt(np.mean((yh[ok] - R.y[ok]) ** 2)))
         yp = fit_static_poly(train, order=3).predict(R.u, R.dt)
-        rp = float(np.sqrt(np.mean((np.asarray(yp) - R.y) ** 2)))
-        row = dict(family=fam, test=test, structure=doc["settings"].get("structure"), rmse=rmse, poly3=rp, ratio=rmse / rp, seconds=time.time() - t0)
+        rp = float(np.sqrt(np.mean((np.asarray(yp)[ok] - R.y[ok]) ** 2)))
+        row = dict(family=fam, test=test, structure=doc["settings"].get("structure"), held=getattr(getattr(model, "hysteresis", model), "held", None), rmse=rmse, poly3=rp, ratio=rmse / rp, seconds=time.time() - t0)
         print(json.dumps(row), flush=True)
         rows.append(row)
 json.dump(rows, open(sys.argv[2], "w"), indent=1)

@@ -143,8 +143,8 @@ def add_parser(sub):
         help="the saved model's hysteresis holds its input to the trained range, so that it does not extrapolate outside "
         "it: 'auto' (default) a directly measured input (temperature, pressure), unless the validation samples beyond the "
         "training range are predicted better extrapolating; 'on' always, a cascade's thermal state too; "
-        "'off' never (fit.json settings.hold_input; session 61: NiTi runs past the trained temperatures 13.6 -> 2.2 and "
-        "10.4 -> 1.2, a drive's thermal state held on simulated plants worse)",
+        "'off' never (fit.json settings.hold_input; session 61: NiTi runs past the trained temperatures 18.2 -> 3.9 and "
+        "9.2 -> 1.2, a drive's thermal state held on simulated plants worse)",
     )
     p.add_argument(
         "--slow-mode",

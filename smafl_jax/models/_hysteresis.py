@@ -234,7 +234,7 @@ class AbstractHysteresis(eqx.Module):
         meaning, and a hysteresis keeps the memory of the excursion.  `smafl_jax.report.fit_record` holds a model that
         sees a measured input directly (temperature, pressure) at its trained range (``hold_input``): on the shared
         NiTi records, predicted run by run from the others, that cut a run whose thermocouple spiked to 220 C from
-        13.6 to 2.2 and a run in 0 C water from 10.4 to 1.2 (length units), and changed no run inside the range."""
+        18.2 to 3.9 and a run in 0 C water from 9.2 to 1.2 (length units), and changed no run inside the range."""
         if lo is None:
             return dataclasses.replace(self, held=None)
         lo, hi = float(lo), float(hi)
