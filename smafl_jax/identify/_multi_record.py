@@ -41,7 +41,7 @@ from ..models._range import value_range
 from ._baselines import BASELINES, TIE_RATIO, baselines_doc, baselines_markdown, compare_sentences, is_voltage
 from ._baselines import TITLES as BASELINE_TITLES
 from ._gain_prior import GAIN_PRIOR
-from ._hold import check_hold_input, hold_fitted, hold_on
+from ._hold import check_hold_input, hold_choice, hold_fitted, hold_on
 from ._metrics import metrics, noise_floor, noise_floor_note
 from ._split import interpolated_note
 
@@ -238,20 +238,17 @@ def _with_shared_start(model, info):
 
 
 def _hold_by_folds(runs, rule):
-    """Whether the leave-one-record-out folds are scored held or extrapolating (`hold_choice` over their pooled held-out
-    squared errors), and the fit.json ``settings.hold_input_check`` entry (None when no fold differs)."""
-    from ._hold import hold_choice
-
-    sse = {"held": 0.0, "extrapolating": 0.0}
-    for _, rec, _, _, _, preds, _ in runs:
-        if "extrapolating" not in preds:
-            continue
-        for way in sse:
-            y, scored, _ = preds[way]
-            sse[way] += float(np.sum((y[scored] - rec.y[scored]) ** 2))
-    if not any("extrapolating" in r[5] for r in runs):
+    """Whether the leave-one-record-out folds are scored held or extrapolating (`hold_choice` over the pooled held-out
+    squared errors of the folds where the two differ), and the fit.json ``settings.hold_input_check`` entry (None when
+    no fold differs)."""
+    differ = [(rec, preds) for _, rec, _, _, _, preds, _ in runs if "extrapolating" in preds]
+    if not differ:
         return "held", None
-    n = sum(int(r[5]["held"][1].sum()) for r in runs)
+    sse = {
+        way: sum(float(np.sum((p[way][0][p[way][1]] - rec.y[p[way][1]]) ** 2)) for rec, p in differ)
+        for way in ("held", "extrapolating")
+    }
+    n = sum(int(p["held"][1].sum()) for _, p in differ)
     return hold_choice(sse["held"], sse["extrapolating"], n, rule, "the leave-one-record-out folds")
 
 
