@@ -45,6 +45,10 @@ def run_one(seed, cell, physics, model, minutes, tmp, slow_mode=None):
     e = yh - r["output"]
     ec = yh - r["output_clean"]
     choice = (doc.get("settings") or {}).get("structure_choice") or {}
+    # the saved model without its input hold (`hold_input`): what the hold changed on the held-out part
+    h = sj.hysteresis_of(m)
+    free = m.with_hysteresis(h.with_held(None)) if getattr(h, "held", None) is not None else m
+    e_free = np.asarray(sj.simulate(free, r["voltage"], 1.0 / float(rate))) - r["output"]
     return {
         "seed": seed,
         "cell": cell,
@@ -54,6 +58,8 @@ def run_one(seed, cell, physics, model, minutes, tmp, slow_mode=None):
         "train_x": float(np.sqrt(np.mean(e[:h0] ** 2)) / sd),
         "held_x": float(np.sqrt(np.mean(e[h0:] ** 2)) / sd),
         "clean_x": float(np.sqrt(np.mean(ec[h0:] ** 2)) / sd),
+        "hold_input": (doc.get("settings") or {}).get("hold_input"),
+        "held_x_not_held": float(np.sqrt(np.mean(e_free[h0:] ** 2)) / sd),
         "whole_record_check": choice.get("whole_record_check"),
         "slow_mode_check": choice.get("slow_mode_check"),
         "slow_mode": slow_mode,

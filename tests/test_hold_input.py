@@ -51,7 +51,8 @@ def test_held_range_saves_loads_and_is_described(tmp_path, rng):
     assert back.held == (LO, HI)
     assert any("input held to its trained range [0.5, 1.6]" in line for line in back.describe())
     assert back.with_held(None).held is None
-    for bad in ((1.0, 1.0), (2.0, 1.0), (np.nan, 1.0)):
+    assert back.with_held(LO, None).held == (LO, None) and back.with_held(None, HI).held == (None, HI)
+    for bad in ((1.0, 1.0), (2.0, 1.0), (np.nan, 1.0), (np.inf, None)):
         with pytest.raises(ValueError, match="held range"):
             m.with_held(*bad)
 
@@ -86,23 +87,41 @@ def test_fit_holds_a_directly_measured_input_unless_its_validation_says_otherwis
         fit_record(temperature_record, hold_input="yes", **opts)
 
 
-def test_a_cascade_extrapolates_unless_asked(tmp_path):
+def test_a_cascade_is_held_below_its_trained_thermal_range_only(tmp_path):
+    """auto holds a cascade's thermal state at the low edge of its trained range (colder than ever trained: no
+    extrapolation) and lets it extrapolate above; on holds both sides; a record that reached the ambient holds nothing."""
     rec = sj.load_record(DATASETS / "main_loop.csv")
     opts = dict(model="cascade", max_steps=0, refit=False, orientation="rises", sees="voltage", thermal_start="steady",
                 memory="descended")  # fmt: skip
-    model, doc, _ = fit_record(rec, **opts)
-    assert model.hysteresis.held is None and "extrapolates" in doc["settings"]["hold_input"]["why"]
-    model, doc, _ = fit_record(rec, hold_input="on", **opts)
-    assert model.hysteresis.held == tuple(doc["data"]["effective_input_range"])
-    # simulate says the held model does not extrapolate outside its range
+    model, doc, _ = fit_record(rec, **opts)  # starts at rest at 0 V: the ambient is in its range
+    assert model.hysteresis.held is None and "ambient" in doc["settings"]["hold_input"]["why"]
+    # the same drive from its first rise at 1.7 V to the next fall through it: never colder than the steady start
+    part = slice(132, 749)
+    warm = sj.Record.from_arrays(rec.time[part] - rec.time[part][0], rec.u[part], rec.y[part], input_name="voltage_V",
+                                 output_name="displacement_mm")  # fmt: skip
+    model, doc, _ = fit_record(warm, **opts)
+    lo = doc["data"]["effective_input_range"][0]
+    assert lo > 0 and model.hysteresis.held == (lo, None) and doc["settings"]["hold_input"]["held"] == [lo, None]
+    on, doc_on, _ = fit_record(warm, hold_input="on", **opts)
+    assert on.hysteresis.held == tuple(doc_on["data"]["effective_input_range"])
+    off, _, _ = fit_record(warm, hold_input="off", **opts)
+    assert off.hysteresis.held is None
+    # below: the held model is the model on the held thermal state; above and inside it extrapolates as fitted
+    u = np.r_[warm.u, np.zeros(200), warm.u, np.full(100, warm.u.max() + 1.5)]
+    theta = np.asarray(model.hysteresis_input(u, warm.dt))
+    want = np.asarray(off.hysteresis.simulate(np.maximum(theta, lo)))
+    np.testing.assert_allclose(np.asarray(sj.simulate(model, u, warm.dt)), want, rtol=0, atol=1e-10)
+    assert np.max(np.abs(np.asarray(sj.simulate(off, u, warm.dt)) - want)) > 1e-6  # the drive does go colder
+    # simulate says which side is held; a JSON round trip keeps the open side
     path = tmp_path / "fit.json"
     sj.save_model(path, model, data=doc["data"], settings=doc["settings"])
-    u = np.r_[rec.u, np.full(100, rec.u.max() + 1.5)]
-    csv = tmp_path / "over.csv"
-    sj.atomic_write_csv(csv, {"time_s": np.arange(u.size) * rec.dt, "voltage_V": u})
-    warned = [w for w in sj.simulate_record(path, csv).warnings if "leaves the range" in w]
-    assert warned and all("holds its hysteresis input at the edge" in w for w in warned)
-    assert json.loads(path.read_text())["model"]["hysteresis"]["held"] == list(model.hysteresis.held)
+    csv = tmp_path / "cold.csv"
+    sj.atomic_write_csv(csv, {"time_s": np.arange(u.size) * warm.dt, "voltage_V": u})
+    warned = [w for w in sj.simulate_record(path, csv).warnings if w.startswith("effective input")]
+    assert warned and all("below that range the model holds its hysteresis input" in w for w in warned)
+    assert json.loads(path.read_text())["model"]["hysteresis"]["held"] == [lo, None]
+    assert sj.load_model(path).hysteresis.held == (lo, None)
+    assert any("held at or above" in line for line in sj.load_model(path).describe())
 
 
 def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):

@@ -142,9 +142,9 @@ def add_parser(sub):
         default="auto",
         help="the saved model's hysteresis holds its input to the trained range, so that it does not extrapolate outside "
         "it: 'auto' (default) a directly measured input (temperature, pressure), unless the validation samples beyond the "
-        "training range are predicted better extrapolating; 'on' always, a cascade's thermal state too; "
-        "'off' never (fit.json settings.hold_input; session 61: NiTi runs past the trained temperatures 18.2 -> 3.9 and "
-        "9.2 -> 1.2, a drive's thermal state held on simulated plants worse)",
+        "training range are predicted better extrapolating, and a cascade's thermal state on its cold side only; 'on' "
+        "both sides always; 'off' never (fit.json settings.hold_input; NiTi runs past the trained temperatures 18.2 -> "
+        "3.9 and 9.2 -> 1.2; a thermal state held above its range on simulated plants worse, below it better)",
     )
     p.add_argument(
         "--slow-mode",

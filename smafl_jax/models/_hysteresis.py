@@ -222,23 +222,29 @@ class AbstractHysteresis(eqx.Module):
         return self.simulate(u, dt)
 
     def seen(self, x):
-        """The input as the model takes it: ``x`` held to ``held`` = [lo, hi] when the model has one (`with_held`)."""
+        """The input as the model takes it: ``x`` held to ``held`` = [lo, hi] when the model has one (`with_held`; a side
+        that is None is open)."""
         x = jnp.asarray(x, dtype=jnp.float64)
         held = getattr(self, "held", None)
-        return x if held is None else jnp.clip(x, held[0], held[1])
+        if held is None:
+            return x
+        x = x if held[0] is None else jnp.maximum(x, held[0])
+        return x if held[1] is None else jnp.minimum(x, held[1])
 
     def with_held(self, lo: float | None, hi: float | None = None) -> AbstractHysteresis:
-        """Copy that holds its input to [lo, hi] (None: extrapolates, the default of a new model).
+        """Copy that holds its input to [lo, hi]; a side given as None is open (the model extrapolates there), and
+        ``with_held(None)`` holds nothing (the default of a new model).
 
         Why: outside the range a model was fitted on, its play operators and polynomial extrapolate without a physical
         meaning, and a hysteresis keeps the memory of the excursion.  `smafl_jax.report.fit_record` holds a model that
         sees a measured input directly (temperature, pressure) at its trained range (``hold_input``): on the shared
         NiTi records, predicted run by run from the others, that cut a run whose thermocouple spiked to 220 C from
-        18.2 to 3.9 and a run in 0 C water from 9.2 to 1.2 (length units), and changed no run inside the range."""
-        if lo is None:
+        18.2 to 3.9 and a run in 0 C water from 9.2 to 1.2 (length units), and changed no run inside the range.  A
+        cascade's thermal state is held below only (`smafl_jax.identify._hold`)."""
+        if lo is None and hi is None:
             return dataclasses.replace(self, held=None)
-        lo, hi = float(lo), float(hi)
-        if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+        lo, hi = (None if v is None else float(v) for v in (lo, hi))
+        if not all(v is None or np.isfinite(v) for v in (lo, hi)) or (lo is not None and hi is not None and not hi > lo):
             raise ValueError(f"held range must be finite with hi > lo, got [{lo}, {hi}]")
         return dataclasses.replace(self, held=(lo, hi))
 
@@ -247,7 +253,16 @@ class AbstractHysteresis(eqx.Module):
         held = getattr(self, "held", None)
         if held is None:
             return []
-        return [f"input held to its trained range [{held[0]:.6g}, {held[1]:.6g}]: outside it the model does not extrapolate"]
+        lo, hi = held
+        if hi is None:
+            return [
+                f"input held at or above {lo:.6g}, the low edge of its trained range: below it the model does not extrapolate"
+            ]
+        if lo is None:
+            return [
+                f"input held at or below {hi:.6g}, the high edge of its trained range: above it the model does not extrapolate"
+            ]
+        return [f"input held to its trained range [{lo:.6g}, {hi:.6g}]: outside it the model does not extrapolate"]
 
     def normalise(self, x):
         """``s = (x - u_ref) / u_span`` of the input as the model takes it (`seen`)."""

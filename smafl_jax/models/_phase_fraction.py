@@ -83,8 +83,8 @@ class PhaseFraction(AbstractScaledShape):
 
     # Only in `compile_form` (orientation 0): the orientation as data (`AbstractHysteresis.compile_form`).
     sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
-    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`); None: the model extrapolates outside its range
-    held: tuple[float, float] | None = eqx.field(static=True, default=None)
+    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`; a None side is open); None: the model extrapolates
+    held: tuple[float | None, float | None] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         check_orientation(self, "PhaseFraction")

@@ -146,8 +146,8 @@ class Preisach(AbstractHysteresis):
     # Only in `compile_form` (orientation 0): the orientation as data, +1.0 / -1.0, so that the start screening's two
     # output signs share their compiled programs; None in every model a user holds.
     sign: jnp.ndarray | None = eqx.field(default=None, metadata={"transient": True})
-    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`); None: the model extrapolates outside its range
-    held: tuple[float, float] | None = eqx.field(static=True, default=None)
+    # [lo, hi] the input is held to (`AbstractHysteresis.with_held`; a None side is open); None: the model extrapolates
+    held: tuple[float | None, float | None] | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         check_orientation(self, "Preisach")

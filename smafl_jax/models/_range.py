@@ -357,13 +357,22 @@ _HOLDS = (
 )
 
 
+_HOLDS_BELOW = (
+    "; below that range the model holds its hysteresis input at the edge (fit.json settings.hold_input) instead of "
+    "extrapolating; above it the model extrapolates, and a hysteresis model keeps a memory of the excursion afterwards"
+)
+
+
 def _said_held(model, checks):
-    """Range warnings of a model whose hysteresis holds its input (`AbstractHysteresis.with_held`) say so."""
+    """Range warnings of a model whose hysteresis holds its input (`AbstractHysteresis.with_held`) say so; a hold of
+    the low side only (a cascade's thermal state) is said on the hysteresis input's own check."""
     from ._hysteresis import hysteresis_of
 
-    h = hysteresis_of(model)
-    if getattr(h, "held", None) is not None:
-        for chk in checks:
-            if chk.get("warning") and chk.get("what") in ("input", "effective input"):
-                chk["warning"] = chk["warning"].replace(_EXTRAPOLATES, _HOLDS)
+    held = getattr(hysteresis_of(model), "held", None)
+    if held is None:
+        return checks
+    both = held[0] is not None and held[1] is not None
+    for chk in checks:
+        if chk.get("warning") and chk.get("what") in (("input", "effective input") if both else ("effective input",)):
+            chk["warning"] = chk["warning"].replace(_EXTRAPOLATES, _HOLDS if both else _HOLDS_BELOW)
     return checks

@@ -227,7 +227,7 @@ def fit_record(record, *, model="auto", progress=False, **options):
     ``poly_order``), ``orientation``, ``thermal_start``, ``sees``, ``memory`` (all "auto"), ``refit`` (True; the
     flag is ``--no-refit``), ``gain_prior`` (1.0, None for plain least squares), ``early_stopping``, ``median`` and
     ``sparse_grid`` (False), ``hold_input`` ("auto": the saved model's hysteresis holds a directly measured input to its
-    trained range, `smafl_jax.identify._hold`).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
+    trained range, a cascade's thermal state to its low edge, `smafl_jax.identify._hold`).  ``progress``: progress lines on the ``smafl_jax`` progress logger.  Lower level: `smafl_jax.fit` trains
     a model as given, without the screening or the split.
     """
     if record.y is None:
