@@ -12,11 +12,14 @@ for pat in sys.argv[1:]:
     doc = json.loads(fj.read_text()); model = sj.load_model(fj)
     h = hysteresis_of(model)
     if h is None or not hasattr(h, "with_held") or not hasattr(model, "with_hysteresis"): continue
+    # "free": the saved model with any hold taken off (session 62's default holds a cascade's cold side)
+    h = h.with_held(None); model = model.with_hysteresis(h)
     tr = sj.load_record(d / "first70.csv"); full = sj.load_record(d / "full.csv"); h0 = len(tr)
     sd = float(re.search(r"_n([0-9.]+)", d.name).group(1))
     lo, hi = doc["data"].get("effective_input_range") or doc["data"]["input_range"]
     out = {}
-    for k, b in {"free": None, "both": (lo, hi), "low": (lo, 1e12), "high": (-1e12, hi)}.items():
+    sp = hi - lo
+    for k, b in {"free": None, "both": (lo, hi), "low": (lo, 1e12), "high": (-1e12, hi), "low10": (lo - 0.1 * sp, 1e12), "low25": (lo - 0.25 * sp, 1e12)}.items():
         m = model if b is None else model.with_hysteresis(h.with_held(*b))
         y = np.asarray(sj.simulate(m, full.u, full.dt))
         out[k] = float(np.sqrt(np.mean((y[h0:] - full.y[h0:]) ** 2)) / sd)
@@ -25,5 +28,5 @@ for pat in sys.argv[1:]:
     xe = effective_values(model, full.u, full.dt)
     below = float(np.mean(xe[h0:] < lo)) if xe is not None else float("nan"); above = float(np.mean(xe[h0:] > hi)) if xe is not None else float("nan")
     rows.append(out); print(f"{d.name:42s} {type(h).__name__:16s} below {below:.2f} above {above:.2f} " + " ".join(f"{k} {v:8.2f}" for k, v in out.items()), flush=True)
-r = np.array([[o[k] for k in ("free", "both", "low", "high")] for o in rows])
-print("n", len(r), "gm free %.2f both %.2f low %.2f high %.2f" % tuple(np.exp(np.mean(np.log(r), axis=0))))
+r = np.array([[o[k] for k in ("free", "both", "low", "high", "low10", "low25")] for o in rows])
+print("n", len(r), "gm free %.2f both %.2f low %.2f high %.2f low10 %.2f low25 %.2f" % tuple(np.exp(np.mean(np.log(r), axis=0))))

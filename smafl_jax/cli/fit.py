@@ -144,7 +144,7 @@ def add_parser(sub):
         "it: 'auto' (default) a directly measured input (temperature, pressure), unless the validation samples beyond the "
         "training range are predicted better extrapolating, and a cascade's thermal state on its cold side only; 'on' "
         "both sides always; 'off' never (fit.json settings.hold_input; NiTi runs past the trained temperatures 18.2 -> "
-        "3.9 and 9.2 -> 1.2; a thermal state held above its range on simulated plants worse, below it better)",
+        "3.9 and 9.2 -> 1.2; a thermal state held above its range on simulated plants worse, below it better on the whole)",
     )
     p.add_argument(
         "--slow-mode",

@@ -19,12 +19,13 @@ extrapolating, 1.17 held).  So ``"auto"`` holds a model whose hysteresis sees th
 held-out samples that leave the training range (a one-record fit's validation samples, a joint fit's
 leave-one-record-out folds) are predicted better extrapolating (`hold_choice`).
 
-A cascade's thermal state is held on its cold side only (session 62).  Held out on 44 plant-B fits (sessions 61-62,
-post-hoc), holding below changed 3 records, all for the better (469 -> 58, 130 -> 9.3, 1.20 -> 1.08 x the noise; the
-first two: a warm-looking fitted start, then the first long cooling below anything the training part cooled to, where
-the play operators and the cubic ran off by 1.8 spans of the output), and no record for the worse; holding above made
-11 worse (gm 4.39 -> 7.11 on 30 of them).  15 fresh plant-A cells: no change either way (their held-out parts stay in
-range).  An SMA colder than its trained range sits below its transformation; hotter, it goes on transforming.
+A cascade's thermal state is held on its cold side only (session 62).  Held out on 63 plant-B fits (post-hoc; 24 of
+them fresh seeds 40-41), holding below changed 6: four better (469 -> 58, 130 -> 9.3, 8.35 -> 7.14, 1.20 -> 1.08 x the
+noise; the first two: a warm-looking fitted start, then the first long cooling below anything the training part cooled
+to, where the play operators and the cubic ran off by 1.8 spans of the output) and two worse (1.06 -> 1.88, and 360 ->
+455 on a record whose training part never cooled at all); gm 4.61 -> 4.31.  Holding above made 13 of the first 39
+worse (all 63: gm 6.75).  15 fresh plant-A cells: no change (their held-out parts stay in range).  An SMA colder than
+its trained range mostly sits below its transformation; hotter, it goes on transforming.
 """
 
 from __future__ import annotations
