@@ -34,3 +34,11 @@ MEMORY = ("auto", "fitted", "rule", "descended", "zero", "from_top")
 #: kappa of the prior on the operator gains in `smafl fit` / `fit_record` / `fit_records` (`smafl_jax.identify._gain_prior`):
 #: one operator is expected to move the output by at most about the output's own observed range.
 GAIN_PRIOR = 1.0
+#: ``hold_input`` of `smafl fit` / `fit_record` / `fit_records` (`smafl_jax.identify._hold`): "auto" (a model that sees
+#: its measured input directly; a cascade's thermal state below its trained range), "on" (a cascade's thermal state on
+#: both sides), "off" (none: every model extrapolates).
+HOLD_INPUT = ("auto", "on", "off")
+#: ``slow_mode`` of `smafl fit` / `fit_record`: "auto" tries a slow thermal mode when the kept fit leaves structure on
+#: the record it was fitted on (`smafl_jax.report._report_fit._slow_mode_check`), "on" fits every cascade with one, "off"
+#: never.
+SLOW_MODES = ("auto", "on", "off")

@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-from .._choices import GAIN_PRIOR
+from .._choices import GAIN_PRIOR, HOLD_INPUT, SLOW_MODES
 from .check import TIME_HELP, add_resample_argument, add_window_argument, apply_window
 
 
@@ -138,7 +138,7 @@ def add_parser(sub):
     )
     p.add_argument(
         "--hold-input",
-        choices=("auto", "on", "off"),
+        choices=HOLD_INPUT,
         default="auto",
         help="the saved model's hysteresis holds its input to the trained range, so that it does not extrapolate outside "
         "it: 'auto' (default) a directly measured input (temperature, pressure), unless the validation samples beyond the "
@@ -148,7 +148,7 @@ def add_parser(sub):
     )
     p.add_argument(
         "--slow-mode",
-        choices=("auto", "on", "off"),
+        choices=SLOW_MODES,
         default="auto",
         help="a second, slower thermal mode in a cascade (a wire on a nylon line, in a sleeve or on clamps warms a second "
         "mass): 'auto' (default, one record with --model auto) fits every compared class again with one (from a fresh "

@@ -32,12 +32,9 @@ from __future__ import annotations
 
 from typing import Any
 
+from .._choices import HOLD_INPUT
 from .._errors import UserInputError
 from ..models._hysteresis import hysteresis_of, thermal_of
-
-#: ``hold_input`` choices: "auto" (a model that sees its measured input directly; a cascade's thermal state below its
-#: trained range), "on" (a cascade's thermal state on both sides), "off" (none: every model extrapolates).
-HOLD_INPUT = ("auto", "on", "off")
 
 #: fit.json ``settings.hold_input.why`` of a cascade held by "auto".
 COLD_SIDE = (

@@ -55,7 +55,7 @@ from ._provenance import fit_header, record_data, solver_entry, versions
 
 __all__ = ["MODELS", "build_model", "choose_structure", "fit_record", "write_fit_outputs", "versions"]
 
-from .._choices import HYSTERESIS, MODELS
+from .._choices import HYSTERESIS, MODELS, SLOW_MODES
 
 
 class Candidate(NamedTuple):
@@ -126,9 +126,6 @@ def build_model(kind, record, *, n_sym=8, n_alpha=4, n_asym=4, poly_order=3, u_r
     raise UserInputError(f"unknown model {kind!r}; choose one of {MODELS}")
 
 
-#: ``slow_mode`` of `fit_record` (``smafl fit --slow-mode``): "auto" tries a slow thermal mode when the kept fit leaves
-#: structure on the record it was fitted on (`_slow_mode_check`), "on" fits every cascade with one, "off" never.
-SLOW_MODES = ("auto", "on", "off")
 #: Start of a slow thermal mode's fit (`slow_thermal_start`): time constant (s) and the share of the heat through it.
 SLOW_START_TAU = 120.0
 SLOW_START_SHARE = 0.25
