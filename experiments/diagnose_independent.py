@@ -73,6 +73,10 @@ def run_one(name, seed, folder, n_null, fpr):
             if c.get("fitted")
         ],
         "evidence_top3": res["evidence_ranking"][:3],
+        # how much of the held-out block the training part saw (input; the base's thermal state), and what the user was told
+        "heldout_coverage": (res["split"].get("coverage") or {}).get("covered_fraction"),
+        "heldout_state_coverage": (res["split"].get("state_coverage") or {}).get("covered_fraction"),
+        "warnings": res.get("warnings", []),
         "unexplained": _unexplained_row(res.get("unexplained")),
         "seconds": time.time() - t0,
     }
@@ -153,7 +157,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--n-null", type=int, default=8)
     ap.add_argument("--fpr", type=float, default=0.01)
-    ap.add_argument("--truths", nargs="*", default=list(ie.TRUTHS))
+    ap.add_argument("--truths", nargs="*", default=list(ie.TRUTHS), help=f"any of {ie.ALL_TRUTHS}")
     ap.add_argument("--out", default=str(OUT))
     ap.add_argument("--fpr-check", type=int, default=0, help="only measure the false-positive rate on N clean records")
     a = ap.parse_args(argv)
@@ -170,7 +174,7 @@ def main(argv=None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in a.truths:
-            r = run_one(name, a.seed + 1000 * ie.TRUTHS.index(name), tmp, a.n_null, a.fpr)
+            r = run_one(name, a.seed + 1000 * ie.ALL_TRUTHS.index(name), tmp, a.n_null, a.fpr)
             rows.append(r)
             print(
                 f"{name:>20s}: old {_label(r['selected_old'])}, new {_label(r['selected_new'])}; base held-out RMSE "

@@ -55,7 +55,26 @@ CASES: dict[str, tuple[str | None, tuple[str, ...], object]] = {
     "delay": ("delay", ("integer", "fractional"), None),
     "output_lag": ("sensor_lag", ("first_order", "second_order"), None),
 }
+#: Effects in no catalogue of the toolkit (tests/indep_plant.py UNCATALOGUED): the right answer of a diagnosis is no
+#: catalogue name, and its "unexplained" report should find structure left and name the correlate behind it.
+UNCATALOGUED_CASES: dict[str, tuple[str, tuple[str, ...], object]] = {
+    name: (name, variants, None) for name, variants in ip.UNCATALOGUED.items()
+}
+#: What the unexplained report should name as the strongest correlate, per uncatalogued truth and variant (None: no
+#: correlate of the toolkit's list carries it; structure left is then the right answer).
+EXPECTED_CORRELATE = {
+    ("extra_column", "humidity"): "humidity_pct",
+    ("extra_column", "supply_voltage"): "supply_V",
+    ("periodic_disturbance", "sinusoid"): None,
+    ("periodic_disturbance", "square_load"): None,
+    ("gain_drift", "linear"): "elapsed_time",
+    ("gain_drift", "warmup"): "elapsed_time",
+}
 TRUTHS = tuple(CASES)
+UNCATALOGUED_TRUTHS = tuple(UNCATALOGUED_CASES)
+#: every truth; a record's seed offset is its index here (the catalogued truths keep theirs)
+ALL_TRUTHS = TRUTHS + UNCATALOGUED_TRUTHS
+CASES = {**CASES, **UNCATALOGUED_CASES}
 MIN_SAMPLES, MAX_SAMPLES = 2000, 4000
 SNR_MIN = ip.EFFECT_MIN_SNR  # 5x the noise RMS
 
@@ -94,7 +113,7 @@ def make_effect_record(name: str, seed: int, max_tries: int = 50) -> dict:
     (seed, seed + 7919, ...); the seed actually used is in ``case['plant_seed']``.
     """
     if name not in CASES:
-        raise ValueError(f"unknown truth {name!r}; choose one of {TRUTHS}")
+        raise ValueError(f"unknown truth {name!r}; choose one of {ALL_TRUTHS}")
     effect = CASES[name][0]
     for i in range(max_tries):
         s = int(seed) + 7919 * i

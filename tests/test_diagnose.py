@@ -654,6 +654,17 @@ def test_folds_gate_floors_a_diverged_fold_but_keeps_consistency():
     assert folds_gate([0.04, 0.06, 0.08], 0.05)[0]
 
 
+def test_a_base_that_holds_out_far_above_its_training_error_is_warned_about():
+    from smafl_jax.diagnosis import generalisation_warning
+    from smafl_jax.diagnosis._diagnose import GENERALISATION_GAP_WARN
+
+    assert generalisation_warning(0.01, 0.019) is None  # held out at 1.9x training: no warning
+    assert generalisation_warning(0.01, 0.99 * GENERALISATION_GAP_WARN * 0.01) is None
+    w = generalisation_warning(0.0101, 0.2868)  # an independent clean record (seed 28): 28.4x
+    assert w is not None and "28.4x its training RMSE" in w
+    assert generalisation_warning(0.0, 0.1) is None and generalisation_warning(0.01, float("nan")) is None
+
+
 def _eupi_accumulation_record(truth, drives, c, seed, noise=0.003):
     """Temperature-input record (EUPI base: every fit is a least-squares solve) with strain accumulation c.
 
