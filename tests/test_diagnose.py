@@ -655,8 +655,7 @@ def test_folds_gate_floors_a_diverged_fold_but_keeps_consistency():
 
 
 def test_a_base_that_holds_out_far_above_its_training_error_is_warned_about():
-    from smafl_jax.diagnosis import generalisation_warning
-    from smafl_jax.diagnosis._diagnose import GENERALISATION_GAP_WARN
+    from smafl_jax.diagnosis import GENERALISATION_GAP_WARN, generalisation_warning
 
     assert generalisation_warning(0.01, 0.019) is None  # held out at 1.9x training: no warning
     assert generalisation_warning(0.01, 0.99 * GENERALISATION_GAP_WARN * 0.01) is None

@@ -5,6 +5,7 @@ catalogue effects and the generic, labelled correction when the residual stays u
 """
 
 from ._diagnose import (
+    GENERALISATION_GAP_WARN,
     Segment,
     Split,
     applicable_effects,
@@ -93,6 +94,7 @@ __all__ = [
     "fold_splits",
     "folds_gate",
     "generalisation_warning",
+    "GENERALISATION_GAP_WARN",
     "n_parameters",
     "n_refined_parameters",
     "profile_gains",
