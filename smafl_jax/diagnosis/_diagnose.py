@@ -871,7 +871,7 @@ BASE_AT_FLOOR = 1.2
 
 
 #: Held-out over training RMSE of the base above which `diagnose` warns that its held-out block measures how the base
-#: generalises rather than missing physics.  Measured blind on 107 independent records (sessions 30-63,
+#: generalises rather than missing physics.  Measured blind on 114 independent records (sessions 30-63,
 #: experiments/results/diagnose_independent_session63/README.md): with a gap of 4x or more a selection named the true effect
 #: on 4 of 12 (5 wrong effects, 3 on clean or uncatalogued records), with a gap below 2x on 19 of 27.
 GENERALISATION_GAP_WARN = 4.0
