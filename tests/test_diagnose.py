@@ -654,6 +654,41 @@ def test_folds_gate_floors_a_diverged_fold_but_keeps_consistency():
     assert folds_gate([0.04, 0.06, 0.08], 0.05)[0]
 
 
+def test_folds_gate_leaves_out_undetermined_folds_when_two_determined_ones_remain():
+    from smafl_jax.diagnosis import folds_gate
+
+    # session 64, creep record s6006: the first block's fold is undetermined; the other two decide, and must both gain
+    ok, mean = folds_gate([-17.5, 0.43, 0.58], 0.05, [False, True, True])
+    assert ok and mean == pytest.approx((0.43 + 0.58) / 2)
+    assert not folds_gate([-17.5, 0.43, 0.58], 0.05)[0]  # counted, the diverged fold sinks the mean
+    assert not folds_gate([0.5, -0.2, 0.6], 0.05, [False, True, True])[0]  # no exception left among two folds
+    # fewer than two determined folds: the rule over all folds, as without the flags
+    assert folds_gate([-0.1, 0.5, 0.6], 0.05, [False, False, True]) == folds_gate([-0.1, 0.5, 0.6], 0.05)
+    assert folds_gate([-0.1, 0.5, 0.6], 0.05, [True, True, True]) == folds_gate([-0.1, 0.5, 0.6], 0.05)
+
+
+def test_fold_undetermined_flags_a_block_whose_operators_the_other_blocks_never_move(truth):
+    from smafl_jax.data import Record
+    from smafl_jax.diagnosis import FOLD_UNDETERMINED, fold_splits, fold_undetermined, profile_gains
+
+    eupi = truth.hysteresis
+    u0, us = float(eupi.u_ref), float(eupi.u_span)
+    n, k = 900, 300
+    t = np.arange(n) * 0.5
+    # two full loops over the range in the first block, then oscillations of 3 % of the span: after the first block
+    # every operator with a threshold above 3 % is frozen, constant like the offset column
+    u = np.r_[
+        u0 + us * (0.5 - 0.45 * np.cos(4 * np.pi * t[:k] / t[k - 1])),
+        u0 + us * (0.5 + 0.03 * np.sin(2 * np.pi * t[k:] / 20)),
+    ]
+    m = ExtendedModel(eupi, ())
+    y = np.asarray(sj.simulate(m, u, 0.5)) + 3e-4 * np.random.default_rng(0).standard_normal(n)
+    rec = Record.from_arrays(t, u, y, input_name="temperature_C", output_name="displacement_mm")
+    und = [fold_undetermined(profile_gains(m, fs.train)[0], fs) for fs in fold_splits(rec, 3)]
+    assert und[0] > FOLD_UNDETERMINED  # the first block, held out, moves operators its training never moved
+    assert max(und[1:]) < 1e-6  # the later blocks only move operators the first block trains as well
+
+
 def test_a_base_that_holds_out_far_above_its_training_error_is_warned_about():
     from smafl_jax.diagnosis import GENERALISATION_GAP_WARN, generalisation_warning
 

@@ -5,6 +5,7 @@ catalogue effects and the generic, labelled correction when the residual stays u
 """
 
 from ._diagnose import (
+    FOLD_UNDETERMINED,
     GENERALISATION_GAP_WARN,
     Segment,
     Split,
@@ -14,6 +15,7 @@ from ._diagnose import (
     effect_evidence,
     fit_extended,
     fold_splits,
+    fold_undetermined,
     folds_gate,
     generalisation_warning,
     lookalike_groups,
@@ -93,6 +95,8 @@ __all__ = [
     "applicable_effects",
     "fold_splits",
     "folds_gate",
+    "fold_undetermined",
+    "FOLD_UNDETERMINED",
     "generalisation_warning",
     "GENERALISATION_GAP_WARN",
     "n_parameters",

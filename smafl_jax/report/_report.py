@@ -198,7 +198,10 @@ def _report_md(rec, res):
         for c in res["candidates"]:
             cal = c.get("calibration", {})
             if "folds" in cal:
-                fg = ", ".join(f"{100 * f['gain']:+.1f} %" for f in cal["folds"])
+                # a fold whose held-out prediction its training leaves undetermined is marked: it did not count
+                fg = ", ".join(
+                    f"{100 * f['gain']:+.1f} %" + ("" if f.get("determined", True) else " (undetermined)") for f in cal["folds"]
+                )
                 nl = cal.get("null")
                 nt = (
                     f"; null gains mean {100 * nl['mean']:.1f} %, max {100 * nl['max']:.1f} %, threshold {100 * nl['threshold']:.1f} %"
