@@ -198,7 +198,8 @@ def _report_md(rec, res):
         for c in res["candidates"]:
             cal = c.get("calibration", {})
             if "folds" in cal:
-                # a fold whose held-out prediction its training leaves undetermined is marked: it did not count
+                # a fold whose held-out prediction its training leaves undetermined is marked (it counts only when
+                # fewer than two determined folds remain: `folds_gate`)
                 fg = ", ".join(
                     f"{100 * f['gain']:+.1f} %" + ("" if f.get("determined", True) else " (undetermined)") for f in cal["folds"]
                 )
