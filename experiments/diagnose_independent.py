@@ -49,6 +49,8 @@ def run_one(name, seed, folder, n_null, fpr):
         "selected_new": res["selected"],
         "ambiguous_new": res["ambiguous"],
         "unspecific_new": res.get("unspecific", []),
+        # the whole-record naming (issue 13, session 66): what the gates alone selected, and the ranking that renamed it
+        "naming": res.get("naming"),
         "selected_old": res["selection"]["legacy_selected"],
         "base_train_rmse": res["base"]["train_rmse"],
         "base_heldout_rmse": res["base"]["heldout_rmse"],

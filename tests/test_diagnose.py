@@ -1,5 +1,6 @@
 """Issue 6: effect catalogue, residual statistics, blind diagnosis on records with an undeclared effect."""
 
+import dataclasses
 import json
 
 import equinox as eqx
@@ -729,10 +730,16 @@ def test_calibrated_rule_accepts_a_real_effect_and_reports_folds_and_nulls(truth
     assert nl["n_records"] == 3 and len(nl["gains"]) == 3 and nl["fpr"] == 0.01
     assert cal["gain"] > nl["threshold"] >= max(nl["gains"])
     assert res["selection"]["rule"] == "calibrated" and res["selection"]["false_positive_rate"] == 0.01
+    # named on the whole record too: the only candidate, refitted on every sample, gains well above min_gain
+    nm = res["naming"]
+    assert nm["split_selected"] == ["strain_accumulation"] and nm["named"] == "strain_accumulation"
+    assert [r["name"] for r in nm["ranking"]] == ["strain_accumulation"] and nm["ranking"][0]["gain"] > 0.05
+    assert nm["ranking"][0]["rmse"] < nm["base_rmse"]
     # the report: one decision per candidate, no 'nan', the fold gains and null threshold shown
     write_diagnosis(tmp_path, rec, diag)
     md = (tmp_path / "report.md").read_text()
     assert "nan" not in md and "| selected |" in md and "fold gains" in md and "threshold" in md
+    assert "Naming on the whole record" in md
 
 
 def test_diagnosis_object_is_typed_and_its_json_has_no_private_keys(truth, drives, tmp_path):
@@ -886,3 +893,89 @@ def test_refined_parameter_count_counts_thresholds_tilts_and_fitted_memory():
     grids = sum(np.size(getattr(h, f)) for f in ("r_sym", "r_asym", "alpha"))
     assert n_refined_parameters(rule) == n_parameters(rule) + grids
     assert n_refined_parameters(fitted) == n_refined_parameters(rule) + h.n_operators
+
+
+def _ranking(*rows):
+    return {"base_rmse": 1.0, "ranking": [{"name": n, "rmse": 1.0 - g, "gain": g, "parameters": {}} for n, g in rows]}
+
+
+def test_whole_record_name_takes_the_largest_gain_its_close_lookalikes_and_nothing_below_min_gain():
+    from smafl_jax.diagnosis import lookalike_groups, whole_record_name
+
+    # output_lag and delay share a lookalike group; input_warp shares none with output_lag
+    assert lookalike_groups(["output_lag", "delay"]) and not lookalike_groups(["output_lag", "input_warp"])
+    r = _ranking(("output_lag", 0.37), ("delay", 0.34), ("input_warp", 0.36), ("creep", 0.01))
+    assert whole_record_name(r, 0.05) == ("output_lag", ["output_lag", "delay"])
+    # a lookalike below the share of the first's gain is not ambiguous with it
+    assert whole_record_name(_ranking(("output_lag", 0.37), ("delay", 0.30)), 0.05) == ("output_lag", [])
+    # the whole record does not confirm any effect: nothing is named
+    assert whole_record_name(_ranking(("creep", 0.04), ("delay", 0.03)), 0.05) == (None, [])
+    assert whole_record_name(_ranking(), 0.05) == (None, [])
+
+
+def test_naming_decisions_say_why_the_gates_choice_is_not_named():
+    from smafl_jax.diagnosis import naming_decisions
+
+    doc = {**_ranking(("delay", 0.32), ("sensor_lag", 0.22)), "split_selected": ["sensor_lag"], "named": "delay"}
+    cands = [{"name": "sensor_lag", "decision": "x"}, {"name": "delay", "decision": "selected"}, {"name": "creep"}]
+    naming_decisions(cands, doc)
+    assert cands[0]["decision"].startswith("passes the gates; not selected") and "delay explains more" in cands[0]["decision"]
+    assert cands[1]["decision"].startswith("selected: named on the whole record") and cands[1]["whole_record_gain"] == 0.32
+    assert "whole_record_gain" not in cands[2]
+    doc = {**_ranking(("delay", 0.02)), "split_selected": ["sensor_lag"], "named": None}
+    cands = [{"name": "sensor_lag", "decision": "selected"}]
+    naming_decisions(cands, doc)
+    assert "no effect lowers the RMSE by the minimum gain" in cands[0]["decision"]
+
+
+def test_naming_rule_is_checked():
+    rec = sj.data.Record.from_arrays(np.arange(50) * 0.5, np.linspace(20, 80, 50), np.linspace(0, 1, 50))
+    with pytest.raises(sj.UserInputError, match="naming must be one of"):
+        diagnose(rec, naming="bogus")
+
+
+def test_whole_record_ranking_rechooses_the_drive_lag_before_ranking(truth, drives):
+    """The naming's base takes the drive lag (0 or 1 sample) with the lower whole-record RMSE: a base left at the
+    wrong lag makes a timing effect look real (a clean independent record: delay +28 % at lag 0, +0.4 % at lag 1)."""
+    from smafl_jax.diagnosis import whole_record_name, whole_record_ranking
+
+    # held random levels at 4 s per sample (k1 dt = 0.25): one sample of drive lag shows on every step
+    u0 = np.asarray(drives["minor_loop"][1], float)
+    levels = np.random.default_rng(3).uniform(u0.min(), u0.max(), 60)
+    u, dt = np.repeat(levels, 10), 4.0
+    plant = eqx.tree_at(lambda m: m.thermal, truth, dataclasses.replace(truth.thermal, lag=1))
+    y = np.asarray(sj.simulate(plant, u, dt)) + 0.003 * np.random.default_rng(7).standard_normal(u.size)
+    rec = sj.Record.from_arrays(np.arange(u.size) * dt, u, y, input_name="voltage_V", output_name="displacement_mm")
+    wrong = ExtendedModel(dataclasses.replace(truth, thermal=dataclasses.replace(truth.thermal, lag=0)), ())
+    r = whole_record_ranking(rec, wrong, ["delay"], refine=False)
+    by = r["base_rmse_by_start"]
+    assert r["base"] == "lag 1" and by["lag 1"] < 0.5 * by["split choice"] and by["lag 1"] < 2 * 0.003, by
+    assert r["base_rmse"] == by["lag 1"] and whole_record_name(r, 0.05) == (None, []), r["ranking"]
+
+
+def test_rename_keeps_the_gates_choice_on_a_base_far_above_the_noise_and_drops_an_unconfirmed_one():
+    from smafl_jax.diagnosis import WHOLE_BASE_MAX, rename
+
+    def doc(base_rmse):
+        return {**_ranking(("delay", 0.32), ("sensor_lag", 0.22)), "base_rmse": base_rmse}
+
+    # base within the noise multiple: renamed to the largest whole-record gain
+    d = doc(1.5)
+    assert rename(d, ["sensor_lag"], [], min_gain=0.05, noise_sd=1.0) == ((["delay"], []), None)
+    assert d["applied"] and d["named"] == "delay" and d["split_selected"] == ["sensor_lag"] and d["base_over_noise"] == 1.5
+    # a base far above the noise gains on any effect: the gates' choice (and ambiguous set) stands
+    d = doc(1.01 * WHOLE_BASE_MAX)
+    amb = ["sensor_lag", "output_lag"]
+    assert rename(d, ["sensor_lag"], amb, min_gain=0.05, noise_sd=1.0) == ((["sensor_lag"], amb), None)
+    assert not d["applied"] and "noise SD" in d["reason"]
+    # the gates' own choice confirmed: its ambiguous set kept and joined with the ranking's
+    d = {**_ranking(("output_lag", 0.37), ("delay", 0.35)), "base_rmse": 1.2}
+    assert rename(d, ["output_lag"], ["output_lag", "sensor_lag"], min_gain=0.05, noise_sd=1.0)[0] == (
+        ["output_lag"],
+        ["output_lag", "sensor_lag", "delay"],
+    )
+    # nothing confirmed on the whole record: nothing selected, with a warning
+    (sel, amb), warning = rename(
+        doc(1.0) | _ranking(("delay", 0.02)) | {"base_rmse": 1.0}, ["delay"], [], min_gain=0.05, noise_sd=1.0
+    )
+    assert sel == [] and amb == [] and "nothing selected" in warning

@@ -74,6 +74,14 @@ def add_parser(sub):
         "with thresholds, tilts and a fitted operator memory",
     )
     p.add_argument(
+        "--naming",
+        choices=("whole", "split"),
+        default="whole",
+        help="which effect is named once the calibrated gates accept one: 'whole' (default: the largest RMSE gain with "
+        "every candidate refitted on the whole record; none if below --min-gain) or 'split' (the gates' best held-out "
+        "candidate: earlier versions)",
+    )
+    p.add_argument(
         "--no-unexplained",
         action="store_true",
         help="skip the generic residual regression on the correlates (the 'unexplained' answer; never changes the selection)",
@@ -121,6 +129,7 @@ def run(args):
         screen=args.base_start == "screened",
         refine=not args.no_refine,
         unexplained=not args.no_unexplained,
+        naming=args.naming,
     )
     if len(records) > 1:
         return _several(records, out, settings)

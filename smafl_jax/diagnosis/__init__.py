@@ -33,6 +33,15 @@ from ._diagnose import (
     synthetic_effect_record,
     whole_record_split,
 )
+from ._naming import (
+    WHOLE_BASE_MAX,
+    WHOLE_LOOKALIKE_SHARE,
+    name_on_whole_record,
+    naming_decisions,
+    rename,
+    whole_record_name,
+    whole_record_ranking,
+)
 from ._residuals import (
     autocorrelation,
     candidate_signals,
@@ -111,4 +120,11 @@ __all__ = [
     "state_coverage",
     "synthetic_effect_record",
     "whole_record_split",
+    "whole_record_ranking",
+    "whole_record_name",
+    "naming_decisions",
+    "WHOLE_LOOKALIKE_SHARE",
+    "WHOLE_BASE_MAX",
+    "name_on_whole_record",
+    "rename",
 ]

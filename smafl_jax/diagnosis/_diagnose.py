@@ -861,6 +861,7 @@ def effect_evidence(model, split, names, residual):
 LEGACY_SCREEN = {"p_threshold": 0.01, "max_candidates": 3}
 CALIBRATED_DEFAULTS = {"fpr": 0.01, "n_null": 10, "n_folds": 3, "ar_max_order": 20, "ambiguity": 0.10}
 SELECTION_RULES = ("calibrated", "legacy")
+NAMING_RULES = ("whole", "split")
 #: A base model whose held-out RMSE is at most this many output-noise SDs (`noise_floor`, estimated from the record's
 #: sample-to-sample scatter) is at the noise floor, issue 13's own definition ("within 1.2x the noise standard
 #: deviation"): the calibrated rule then tests no effect.  Why: what is left is noise, and an effect that lowers it
@@ -1367,10 +1368,14 @@ def _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose, sort
     return selected, chosen
 
 
-def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None):
+def _selection_doc(rule, cal, min_gain, candidates, legacy_selected=None, naming="split"):
     """The selection rule as applied, for diagnosis.json (with the legacy decision of each fitted candidate)."""
     legacy = [c["name"] for c in candidates if c.get("legacy_accepted")]
     extra = {} if legacy_selected is None else {"legacy_selected": legacy_selected}
+    if rule == "calibrated":
+        from ._naming import describe_rule
+
+        extra["naming"] = describe_rule(min_gain) if naming == "whole" else "the gates' best held-out candidate is named"
     if rule == "legacy":
         return {
             "rule": "legacy",
@@ -1461,6 +1466,7 @@ def diagnose(
     screen=True,
     refine=True,
     unexplained=True,
+    naming="whole",
 ) -> Diagnosis:
     """Full diagnosis of one record; returns a `Diagnosis` (selected effects, models, split, diagnosis.json content).
 
@@ -1481,6 +1487,10 @@ def diagnose(
     ``rule="legacy"`` is the rule of issue 6 (held-out gain >= ``min_gain`` on one split and lower BIC);
     ``compare_legacy`` also records what it would select (``report["selection"]["legacy_selected"]``).
 
+    ``naming="whole"`` (default, calibrated rule): when the gates accept an effect, the name is chosen on the whole
+    record (`smafl_jax.diagnosis._naming`: every fitted candidate refitted on every sample, the largest gain named if
+    it is >= ``min_gain``, else nothing); ``naming="split"`` keeps the gates' best held-out candidate (earlier versions).
+
     ``unexplained`` (after the selection, never changing it): ``report["unexplained"]`` says whether the held-out
     residual still has structure, names its strongest correlate and scores a generic, clearly labelled ridge
     regression of the residual on the candidate signals, fitted on the training residual (`smafl_jax.diagnosis._unexplained`).
@@ -1491,6 +1501,8 @@ def diagnose(
         raise UserInputError(f"fpr must be in (0, 0.5), got {fpr!r}")
     if n_null < 2:
         raise UserInputError(f"n_null must be >= 2, got {n_null!r}")
+    if naming not in NAMING_RULES:
+        raise UserInputError(f"naming must be one of {NAMING_RULES}, got {naming!r}")
     check_record(record)
     t_start = time.time()
     base0, base_rule = choose_base(record)
@@ -1634,6 +1646,17 @@ def diagnose(
         )
     elif accepted:
         selected, chosen = _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose)
+    naming_doc = None
+    if rule == "calibrated" and naming == "whole" and selected and NONLOCAL_MEMORY["name"] not in selected:
+        from ._naming import name_on_whole_record
+
+        pool = [n for n in fitted if n != NONLOCAL_MEMORY["name"]]
+        naming_doc, (selected, ambiguous), warning = name_on_whole_record(
+            record, base, pool, selected, ambiguous, min_gain=min_gain, noise_sd=noise_sd, refine=refine, verbose=verbose
+        )
+        chosen = base if not selected else chosen if selected == naming_doc["split_selected"] else fitted[selected[0]][0]
+        if warning:
+            warnings.append(warning)
     legacy_selected = None
     if compare_legacy and rule == "calibrated":
         import copy
@@ -1648,6 +1671,10 @@ def diagnose(
             sort=True,
         )[0]
     _decisions(candidates, selected, ambiguous, rule, unspecific, cal["ambiguity"])
+    if naming_doc is not None:
+        from ._naming import naming_decisions
+
+        naming_decisions(candidates, naming_doc)
     if (gap_warning := generalisation_warning(base_tr["rmse"], base_te["rmse"])) is not None:
         warnings.append(gap_warning)
     if unspecific:
@@ -1735,7 +1762,8 @@ def diagnose(
         "ambiguous": ambiguous,
         "unspecific": unspecific,
         "warnings": warnings,
-        "selection": _selection_doc(rule, cal, min_gain, candidates, legacy_selected),
+        "selection": _selection_doc(rule, cal, min_gain, candidates, legacy_selected, naming),
+        "naming": naming_doc,
         "settings": {
             "max_candidates": max_candidates,
             "min_gain": min_gain,

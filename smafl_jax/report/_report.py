@@ -210,6 +210,21 @@ def _report_md(rec, res):
                     else ""
                 )
                 L.append(f"- {c['name']}: fold gains {fg}{nt}")
+    nm = res.get("naming")
+    if nm:
+        named = nm["named"] or "nothing"
+        L += [
+            "",
+            f"Naming on the whole record ({sel.get('naming', '')}): the gates accepted {', '.join(nm['split_selected'])}; "
+            f"named: **{named}**"
+            + (f" (ambiguous with {', '.join(n for n in nm['ambiguous'] if n != nm['named'])})" if nm["ambiguous"] else "")
+            + "."
+            + (f" Not applied: {nm['reason']}." if not nm.get("applied", True) else ""),
+            "",
+            f"| effect | whole-record RMSE ({u}) | gain over the refitted base ({nm['base_rmse']:.4g}) |",
+            "|---|---|---|",
+            *[f"| {r['name']} | {r['rmse']:.4g} | {100 * r['gain']:+.1f} % |" for r in nm["ranking"]],
+        ]
     for w in res.get("warnings", []):
         L += ["", f"**Warning:** {w}"]
     s = res.get("strongest_remaining_correlate")
