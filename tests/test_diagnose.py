@@ -906,8 +906,9 @@ def test_whole_record_name_takes_the_largest_gain_its_close_lookalikes_and_nothi
     assert lookalike_groups(["output_lag", "delay"]) and not lookalike_groups(["output_lag", "input_warp"])
     r = _ranking(("output_lag", 0.37), ("delay", 0.34), ("input_warp", 0.36), ("creep", 0.01))
     assert whole_record_name(r, 0.05) == ("output_lag", ["output_lag", "delay"])
-    # a lookalike below the share of the first's gain is not ambiguous with it
+    # a lookalike below 90 % of the first's gain is not ambiguous with it
     assert whole_record_name(_ranking(("output_lag", 0.37), ("delay", 0.30)), 0.05) == ("output_lag", [])
+    assert whole_record_name(_ranking(("output_lag", 0.37), ("delay", 0.30)), 0.05, share=0.8)[1] == ["output_lag", "delay"]
     # the whole record does not confirm any effect: nothing is named
     assert whole_record_name(_ranking(("creep", 0.04), ("delay", 0.03)), 0.05) == (None, [])
     assert whole_record_name(_ranking(), 0.05) == (None, [])
@@ -979,3 +980,28 @@ def test_rename_keeps_the_gates_choice_on_a_base_far_above_the_noise_and_drops_a
         doc(1.0) | _ranking(("delay", 0.02)) | {"base_rmse": 1.0}, ["delay"], [], min_gain=0.05, noise_sd=1.0
     )
     assert sel == [] and amb == [] and "nothing selected" in warning
+
+
+def test_rename_names_on_the_whole_record_where_the_gates_were_not_run():
+    """A base at the noise floor on the held-out block skips the gates; the whole-record ranking alone may then name
+    an effect (same guard and min_gain), with a warning, and the named candidate's decision says why."""
+    from smafl_jax.diagnosis import naming_decisions, rename
+
+    d = {**_ranking(("nonlinear_cooling", 0.175), ("sensor_lead", 0.11)), "base_rmse": 1.3}
+    (sel, amb), warning = rename(d, [], [], min_gain=0.05, noise_sd=1.0)
+    assert sel == ["nonlinear_cooling"] and amb == [] and "named on the whole record only" in warning
+    cands = [{"name": "nonlinear_cooling", "decision": "selected"}, {"name": "sensor_lead", "decision": "rejected: floor"}]
+    naming_decisions(cands, d)
+    assert cands[0]["decision"].startswith("selected: named on the whole record") and "noise floor" in cands[0]["decision"]
+    assert cands[1]["decision"] == "rejected: floor" and cands[1]["whole_record_gain"] == 0.11
+    # nothing above min_gain: nothing named and nothing to warn about; with no gates, never below 5 % either
+    d = {**_ranking(("creep", 0.03)), "base_rmse": 1.0}
+    assert rename(d, [], [], min_gain=0.05, noise_sd=1.0) == (([], []), None)
+    assert rename(d, [], [], min_gain=0.0, noise_sd=1.0) == (([], []), None)
+    # a leader that holds out worse than the base on the split is not named without the gates
+    d = {**_ranking(("creep", 0.2)), "base_rmse": 1.0}
+    assert rename(d, [], [], min_gain=0.05, noise_sd=1.0, heldout_gain={"creep": -0.01}) == (([], []), None)
+    assert "holds out" in d["reason"]
+    # the base guard holds here too
+    d = {**_ranking(("creep", 0.4)), "base_rmse": 3.0}
+    assert rename(d, [], [], min_gain=0.05, noise_sd=1.0) == (([], []), None) and not d["applied"]

@@ -25,12 +25,12 @@ for f in sorted(glob.glob(f"{alldir}/*.all.txt")):
     sel, amb = r["selected_new"], r["ambiguous_new"] or []
     first = rk[0][0]
     from smafl_jax.diagnosis import whole_record_name
-    nm, namb = whole_record_name({"ranking": [{"name": n, "gain": g} for n, g in rk]}, 0.05)
+    nm, namb = whole_record_name({"ranking": [{"name": n, "gain": g, "rmse": 1 - g} for n, g in rk]}, 0.05)
     combo = [nm] if sel and nm else []
     combo_amb = namb if sel else []
     wb = float(re.search(r"whole-record ([\d.]+)x", txt[0]).group(1))
     if DETECT and not sel and wb <= 2.0:
-        d, damb = whole_record_name({"ranking": [{"name": n, "gain": g} for n, g in rk]}, DETECT)
+        d, damb = whole_record_name({"ranking": [{"name": n, "gain": g, "rmse": 1 - g} for n, g in rk]}, DETECT)
         combo, combo_amb = ([d], damb) if d else ([], [])
     if wb > 2.0:  # WHOLE_BASE_MAX (measured noise here, the diagnosis uses its estimate): the gates' choice stands
         combo, combo_amb = list(sel), list(amb)

@@ -9,7 +9,7 @@ for f in sorted(glob.glob(f"{alldir}/*.all.txt")):
     truth, seed = txt[0].split()[0], txt[0].split()[1]
     wb = float(re.search(r"whole-record ([\d.]+)x", txt[0]).group(1))
     rk = [(x.rsplit(" ", 1)[0], float(x.rsplit(" ", 1)[1])) for x in txt[-1][len("ranked: "):].split(", ")]
-    nm, amb = whole_record_name({"ranking": [{"name": n, "gain": g} for n, g in rk]}, T)
+    nm, amb = whole_record_name({"ranking": [{"name": n, "gain": g, "rmse": 1 - g} for n, g in rk]}, T)
     if wb > 2.0:
         nm, amb = None, []
     ok = (nm is None) if truth == "none" else (nm == truth or truth in amb)

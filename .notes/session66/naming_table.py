@@ -21,7 +21,7 @@ for d in sys.argv[1:]:
         for r in json.load(open(f))["rows"]:
             nm = r.get("naming")
             truth, sel, amb = r["truth"], r["selected_new"], r["ambiguous_new"] or []
-            if nm and "applied" not in nm:  # run before the base guard: replay the decision on the stored ranking
+            if nm:  # replay the current decision (`rename`) on the stored ranking (runs made before its last change)
                 (sel, amb), _ = rename(nm, nm["split_selected"], nm["split_ambiguous"], min_gain=0.05, noise_sd=noise_sd(truth, r["case"]["requested_seed"]))
             gates = nm["split_selected"] if nm else sel
             gamb = nm["split_ambiguous"] if nm else amb

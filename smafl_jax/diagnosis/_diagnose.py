@@ -34,7 +34,10 @@ Procedure (`diagnose`):
    plus an AR model of its own training residuals).  The best accepted one is
    selected; accepted ones within 10 % of its held-out RMSE are reported as an
    ambiguous set; a second effect must pass the same gates against the
-   one-effect model.  ``rule="legacy"`` (issue 6): held-out gain >= ``min_gain``
+   one-effect model.  Which effect is named is then decided on the whole record (``naming="whole"``,
+   `smafl_jax.diagnosis._naming`): every fitted candidate refitted on every sample, the largest training-RMSE
+   gain named (nothing below ``min_gain``), unless that whole-record base stays above 2x the noise, where the
+   gates' choice stands.  ``rule="legacy"`` (issue 6): held-out gain >= ``min_gain``
    on one split and lower training BIC.  Nothing accepted: ``selected = []``
    and the strongest remaining residual correlate is reported.
 6. **Base replacement** ``nonlocal_memory`` (rate-free records only: a
@@ -1647,14 +1650,27 @@ def diagnose(
     elif accepted:
         selected, chosen = _select_legacy(accepted, fitted, split, min_gain, max_effects, verbose)
     naming_doc = None
-    if rule == "calibrated" and naming == "whole" and selected and NONLOCAL_MEMORY["name"] not in selected:
+    # named on the whole record: what the gates accepted, or, with the base at the noise floor on the held-out block
+    # (the gates not run), what the whole record shows (independent records: true effects held out at +8-9 % there)
+    at_floor = rule == "calibrated" and _at_noise_floor(base_h, noise_sd) is not None
+    if rule == "calibrated" and naming == "whole" and (selected or at_floor) and NONLOCAL_MEMORY["name"] not in selected:
         from ._naming import name_on_whole_record
 
         pool = [n for n in fitted if n != NONLOCAL_MEMORY["name"]]
         naming_doc, (selected, ambiguous), warning = name_on_whole_record(
-            record, base, pool, selected, ambiguous, min_gain=min_gain, noise_sd=noise_sd, refine=refine, verbose=verbose
+            record,
+            base,
+            pool,
+            selected,
+            ambiguous,
+            min_gain=min_gain,
+            noise_sd=noise_sd,
+            heldout_gain={c["name"]: c["heldout_gain"] for c in candidates if "heldout_gain" in c},
+            refine=refine,
+            verbose=verbose,
         )
         chosen = base if not selected else chosen if selected == naming_doc["split_selected"] else fitted[selected[0]][0]
+        naming_doc["base_at_noise_floor"] = at_floor
         if warning:
             warnings.append(warning)
     legacy_selected = None

@@ -39,8 +39,13 @@ from ._diagnose import (
 #: asymmetric cooling +73 %); there the gates' choice stands.  The same 2x as `NOISE_FLOOR_WARN`.
 WHOLE_BASE_MAX = NOISE_FLOOR_WARN
 
-#: a lookalike of the named effect that reaches this share of its whole-record RMSE reduction is reported with it
-#: as an ambiguous set (the data do not separate them)
+#: where the gates are not run (a base at the noise floor on the held-out block) the whole-record gain must reach at
+#: least this even when ``min_gain`` is lower, and the named candidate must not hold out worse than the base
+FLOOR_MIN_GAIN = 0.05
+
+#: a lookalike of the named effect that reaches this share of its whole-record RMSE reduction is reported with it as an
+#: ambiguous set (the data do not separate them).  A share of the gain, not a tolerance on the RMSE: at a 5 % gain a
+#: 10 % RMSE tolerance (the gates' own) took in every lookalike (8 effects on independent resistance_tc s1012)
 WHOLE_LOOKALIKE_SHARE = 0.9
 
 
@@ -98,7 +103,8 @@ def whole_record_name(ranking, min_gain, share=WHOLE_LOOKALIKE_SHARE) -> tuple[s
 
 def describe_rule(min_gain, share=WHOLE_LOOKALIKE_SHARE) -> str:
     return (
-        "when the gates accept an effect, the name is chosen on the whole record: the base (drive lag re-chosen) and "
+        "when the gates accept an effect, or cannot be run because the base holds out at the noise floor, the name is "
+        "chosen on the whole record: the base (drive lag re-chosen) and "
         "every fitted candidate are refitted on every sample and the candidate with the largest training-RMSE gain is "
         f"named if that gain is >= {100 * min_gain:g} % (else nothing is selected); its lookalikes reaching "
         f"{100 * share:g} % of its gain are reported as ambiguous with it; when the whole-record base stays above "
@@ -106,21 +112,26 @@ def describe_rule(min_gain, share=WHOLE_LOOKALIKE_SHARE) -> str:
     )
 
 
-def name_on_whole_record(record, base, names, selected, ambiguous, *, min_gain, noise_sd, refine=True, verbose=False):
+def name_on_whole_record(
+    record, base, names, selected, ambiguous, *, min_gain, noise_sd, heldout_gain=None, refine=True, verbose=False
+):
     """``(doc, (selected, ambiguous), warning)``: the gates' ``selected`` / ``ambiguous`` renamed by the whole-record
     ranking of ``names`` (`whole_record_ranking`, `whole_record_name`), kept when the whole-record base is above
-    ``WHOLE_BASE_MAX`` times ``noise_sd``; ``warning`` (or None) says when the ranking dropped the selection."""
+    ``WHOLE_BASE_MAX`` times ``noise_sd``; ``warning`` (or None) says when the ranking dropped the selection, or named
+    one where the gates were not run (``selected`` empty: a base at the noise floor on the held-out block)."""
     doc = whole_record_ranking(record, base, names, refine=refine, verbose=verbose)
-    return (doc, *rename(doc, selected, ambiguous, min_gain=min_gain, noise_sd=noise_sd))
+    return (doc, *rename(doc, selected, ambiguous, min_gain=min_gain, noise_sd=noise_sd, heldout_gain=heldout_gain))
 
 
-def rename(doc, selected, ambiguous, *, min_gain, noise_sd):
+def rename(doc, selected, ambiguous, *, min_gain, noise_sd, heldout_gain=None):
     """The decision of `name_on_whole_record` on a ranking ``doc`` (updated in place): ``((selected, ambiguous),
-    warning)``."""
+    warning)``.  ``selected`` empty: the base held out at the noise floor and the gates were not run; the ranking
+    alone then names an effect (the same base guard, a gain of at least ``max(min_gain, FLOOR_MIN_GAIN)``, and the
+    candidate's split held-out gain, from ``heldout_gain`` by name, not negative), and the warning says so."""
     ratio = doc["base_rmse"] / noise_sd if noise_sd and noise_sd > 0 else None
     doc.update(split_selected=list(selected), split_ambiguous=list(ambiguous), base_over_noise=ratio)
     if ratio is None or ratio > WHOLE_BASE_MAX:
-        doc.update(applied=False, named=selected[0], ambiguous=list(ambiguous))
+        doc.update(applied=False, named=selected[0] if selected else None, ambiguous=list(ambiguous))
         doc["reason"] = (
             "no noise estimate"
             if ratio is None
@@ -128,10 +139,16 @@ def rename(doc, selected, ambiguous, *, min_gain, noise_sd):
             "effect absorbs, so the ranking does not name one; the gates' choice stands"
         )
         return (list(selected), list(ambiguous)), None
-    name, amb = whole_record_name(doc, min_gain)
+    name, amb = whole_record_name(doc, min_gain if selected else max(min_gain, FLOOR_MIN_GAIN))
+    held = (heldout_gain or {}).get(name)
+    if not selected and name is not None and held is not None and held < 0.0:
+        doc["reason"] = f"{name} leads on the whole record but holds out {100 * held:+.1f} % against the base: not named"
+        name, amb = None, []
     doc.update(applied=True, named=name, ambiguous=amb)
+    best = doc["ranking"][0] if doc["ranking"] else None
     if name is None:
-        best = doc["ranking"][0] if doc["ranking"] else None
+        if not selected:
+            return ([], []), None
         warning = (
             f"the calibrated gates accepted {selected[0]}, but refitted on every sample no effect lowers the RMSE by "
             f">= {100 * min_gain:g} %"
@@ -139,6 +156,13 @@ def rename(doc, selected, ambiguous, *, min_gain, noise_sd):
             + "; nothing selected (diagnosis.json 'naming')"
         )
         return ([], []), warning
+    if not selected:
+        warning = (
+            f"{name} named on the whole record only: the base holds out at the noise floor, where the held-out gates "
+            f"are not run, but refitted on every sample {name} lowers the RMSE by {100 * best['gain']:.1f} % (base "
+            f"{ratio:.3g}x the noise SD); the held-out figures cannot confirm it (diagnosis.json 'naming')"
+        )
+        return ([name], amb), warning
     if name != selected[0]:
         return ([name], amb), None
     return (list(selected), list(dict.fromkeys([*ambiguous, *amb]))), None
@@ -148,10 +172,17 @@ def naming_decisions(candidates, doc) -> None:
     """Rewrite the decisions of the candidates the whole-record naming concerns (after `_decisions`), so that a
     report says why a candidate the gates accepted is not named, or why one they rejected is."""
     gain = {r["name"]: r["gain"] for r in doc["ranking"]}
-    split_first, name = doc["split_selected"][0], doc["named"]
+    split_first, name = (doc["split_selected"] or [None])[0], doc["named"]
     for c in candidates:
         n = c["name"]
-        if name is None and n == split_first:
+        if split_first is None and name is not None and n == name:
+            c["decision"] = (
+                f"selected: named on the whole record ({100 * gain[n]:+.1f} % RMSE, the largest gain); the base held out "
+                "at the noise floor, where the held-out gates are not run"
+            )
+        elif split_first is None:
+            pass
+        elif name is None and n == split_first:
             best = doc["ranking"][0]
             c["decision"] = (
                 f"passes the gates; not selected: refitted on every sample no effect lowers the RMSE by the minimum gain "

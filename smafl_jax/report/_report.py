@@ -215,8 +215,13 @@ def _report_md(rec, res):
         named = nm["named"] or "nothing"
         L += [
             "",
-            f"Naming on the whole record ({sel.get('naming', '')}): the gates accepted {', '.join(nm['split_selected'])}; "
-            f"named: **{named}**"
+            f"Naming on the whole record ({sel.get('naming', '')}): "
+            + (
+                f"the gates accepted {', '.join(nm['split_selected'])}; "
+                if nm["split_selected"]
+                else "the base held out at the noise floor, where the gates are not run; "
+            )
+            + f"named: **{named}**"
             + (f" (ambiguous with {', '.join(n for n in nm['ambiguous'] if n != nm['named'])})" if nm["ambiguous"] else "")
             + "."
             + (f" Not applied: {nm['reason']}." if not nm.get("applied", True) else ""),
