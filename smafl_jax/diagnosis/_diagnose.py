@@ -1631,7 +1631,8 @@ def diagnose(
         if (ratio := _at_noise_floor(base_h, noise_sd)) is not None:
             warnings.append(
                 f"the base model is at the noise floor: held-out RMSE {base_h:.4g}, {ratio:.3g}x the output's "
-                f"noise SD ({noise_sd:.4g}, estimated from the data); no effect was tested (at most {BASE_AT_FLOOR:g}x)"
+                f"noise SD ({noise_sd:.4g}, estimated from the data); the held-out gates were not run (at most "
+                f"{BASE_AT_FLOOR:g}x){'' if naming == 'whole' else '; no effect was tested'}"
             )
         selected, chosen, ambiguous, unspecific = _select_calibrated(
             record,
