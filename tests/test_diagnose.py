@@ -416,6 +416,10 @@ def test_cli_no_effect_selects_none(truth, drives, tmp_path, capsys):
     assert doc["selected"] == []
     assert doc["extended"]["heldout_rmse"] == doc["base"]["heldout_rmse"]
     assert all(c["evidence"]["p_value"] >= 0 for c in doc["candidates"])
+    # the default naming is stated; at the noise floor the whole record was asked and named nothing on a clean record
+    assert doc["selection"]["naming"].startswith("when the gates accept an effect")
+    if doc["noise"]["base_heldout_ratio"] <= 1.2:
+        assert doc["naming"]["split_selected"] == [] and doc["naming"]["named"] is None
     # RMSEs in units of the output noise estimated from the data (the generator's noise SD is 0.003)
     noise = doc["noise"]
     assert noise["sd"] == pytest.approx(0.003, rel=0.25)
