@@ -1006,6 +1006,12 @@ def test_rename_names_on_the_whole_record_where_the_gates_were_not_run():
     d = {**_ranking(("creep", 0.2)), "base_rmse": 1.0}
     assert rename(d, [], [], min_gain=0.05, noise_sd=1.0, heldout_gain={"creep": -0.01}) == (([], []), None)
     assert "holds out" in d["reason"]
-    # the base guard holds here too
+    # the base guard holds here too, at the tighter bound of a name no gate stands behind: a base at 3x the noise is
+    # renamed after the gates (WHOLE_BASE_MAX), but names nothing without them (FLOOR_BASE_MAX)
+    from smafl_jax.diagnosis import FLOOR_BASE_MAX, WHOLE_BASE_MAX
+
+    assert FLOOR_BASE_MAX < 3.0 < WHOLE_BASE_MAX
     d = {**_ranking(("creep", 0.4)), "base_rmse": 3.0}
     assert rename(d, [], [], min_gain=0.05, noise_sd=1.0) == (([], []), None) and not d["applied"]
+    d = {**_ranking(("creep", 0.4)), "base_rmse": 3.0}
+    assert rename(d, ["delay"], [], min_gain=0.05, noise_sd=1.0) == ((["creep"], []), None) and d["applied"]

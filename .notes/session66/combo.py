@@ -32,7 +32,8 @@ for f in sorted(glob.glob(f"{alldir}/*.all.txt")):
     if DETECT and not sel and wb <= 2.0:
         d, damb = whole_record_name({"ranking": [{"name": n, "gain": g, "rmse": 1 - g} for n, g in rk]}, DETECT)
         combo, combo_amb = ([d], damb) if d else ([], [])
-    if wb > 2.0:  # WHOLE_BASE_MAX (measured noise here, the diagnosis uses its estimate): the gates' choice stands
+    lead = wb * (1 - rk[0][1]) if os.environ.get("LEAD") else wb
+    if lead > float(os.environ.get("GUARD", "2.0")):  # WHOLE_BASE_MAX (measured noise here, the diagnosis uses its estimate): the gates' choice stands
         combo, combo_amb = list(sel), list(amb)
     def ok(s, a=()):
         if truth == "none":

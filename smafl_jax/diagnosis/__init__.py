@@ -34,6 +34,7 @@ from ._diagnose import (
     whole_record_split,
 )
 from ._naming import (
+    FLOOR_BASE_MAX,
     WHOLE_BASE_MAX,
     WHOLE_LOOKALIKE_SHARE,
     name_on_whole_record,
@@ -124,6 +125,7 @@ __all__ = [
     "whole_record_name",
     "naming_decisions",
     "WHOLE_LOOKALIKE_SHARE",
+    "FLOOR_BASE_MAX",
     "WHOLE_BASE_MAX",
     "name_on_whole_record",
     "rename",

@@ -36,7 +36,7 @@ Procedure (`diagnose`):
    ambiguous set; a second effect must pass the same gates against the
    one-effect model.  Which effect is named is then decided on the whole record (``naming="whole"``,
    `smafl_jax.diagnosis._naming`): every fitted candidate refitted on every sample, the largest training-RMSE
-   gain named (nothing below ``min_gain``), unless that whole-record base stays above 2x the noise, where the
+   gain named (nothing below ``min_gain``), unless that whole-record base stays above 5x the noise (`WHOLE_BASE_MAX`), where the
    gates' choice stands.  ``rule="legacy"`` (issue 6): held-out gain >= ``min_gain``
    on one split and lower training BIC.  Nothing accepted: ``selected = []``
    and the strongest remaining residual correlate is reported.
