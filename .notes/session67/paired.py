@@ -43,24 +43,25 @@ def ok(truth, s, a):
     return (not s) if truth == "none" else bool(s) and (truth in s or truth in a)
 
 
-new = rows(sys.argv[1])
-base = {}
-for d in sys.argv[2:]:
-    base.update(rows(d))
-t = collections.Counter()
-for key in sorted(new):
-    truth, seed = key
-    cols = []
-    for label, r, g in (("s66", base.get(key), 2.0), ("lag", new[key], 2.0), ("final", new[key], 5.0)):
-        if r is None:
-            cols.append(f"{label} {'(no run)':24s}")
-            continue
-        s, a = answer(r, g)
-        k = ok(truth, s, a)
-        t[f"{label} {'clean' if truth == 'none' else 'effect'} right"] += k
-        t[f"{label} {'clean' if truth == 'none' else 'effect'} n"] += 1
-        if truth != "none" and s and not k:
-            t[f"{label} effect wrong"] += 1
-        cols.append(f"{label} {'+'.join(s) or 'none':20s}{'ok' if k else '--'}")
-    print(f"{truth:18s} {seed:5d}  " + "  ".join(cols))
-print(dict(sorted(t.items())))
+if __name__ == "__main__":
+    new = rows(sys.argv[1])
+    base = {}
+    for d in sys.argv[2:]:
+        base.update(rows(d))
+    t = collections.Counter()
+    for key in sorted(new):
+        truth, seed = key
+        cols = []
+        for label, r, g in (("s66", base.get(key), 2.0), ("lag", new[key], 2.0), ("final", new[key], 5.0)):
+            if r is None:
+                cols.append(f"{label} {'(no run)':24s}")
+                continue
+            s, a = answer(r, g)
+            k = ok(truth, s, a)
+            t[f"{label} {'clean' if truth == 'none' else 'effect'} right"] += k
+            t[f"{label} {'clean' if truth == 'none' else 'effect'} n"] += 1
+            if truth != "none" and s and not k:
+                t[f"{label} effect wrong"] += 1
+            cols.append(f"{label} {'+'.join(s) or 'none':20s}{'ok' if k else '--'}")
+        print(f"{truth:18s} {seed:5d}  " + "  ".join(cols))
+    print(dict(sorted(t.items())))

@@ -9,7 +9,9 @@ determined.  Fitted on every sample, the true effect ranked first on 12 of 21 st
 clean record with a misspecified base gains 28-73 % on whichever effect).  So: the gates decide whether, the
 whole record decides which, and an effect that does not lower the whole-record RMSE by ``min_gain`` is not named.
 Measured on fresh independent records (seeds 10-13, session 66): the truth named on 16 of 32 against 10 by the gates
-alone, wrong names 10 -> 6, clean records 8/8 (7/8); experiments/results/diagnose_independent_session66/.
+alone, wrong names 10 -> 6, clean records 8/8 (7/8); experiments/results/diagnose_independent_session66/.  With the
+guard at 5x (session 67) and fresh seed 14: 5 of 8 right, none wrong, clean 2/2; seeds 10-14: 24 of 40, clean 10/10
+(experiments/results/diagnose_independent_session67/).
 """
 
 from __future__ import annotations
