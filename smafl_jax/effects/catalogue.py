@@ -421,7 +421,7 @@ class RateDependence(AbstractThresholdEffect):
     @classmethod
     def grid(cls, ctx):
         # weak to strong widening (a start far above the record's own leaves the simplex worse than the base: an
-        # independent clean-thermal record at c = 0.1 profiled 1.6x the base's RMSE), the lag from one sample to 8 s
+        # independent ambient-drift record (s3010) at c = 0.1 profiled 1.6x the base's RMSE), the lag from one sample to 8 s
         return [cls(c=_a(c), tau=_a(t)) for c in (0.003, 0.03, 0.3) for t in cls._taus(ctx, (ctx["dt"], 2.0, 8.0))]
 
     @classmethod
