@@ -86,6 +86,12 @@ def add_parser(sub):
         action="store_true",
         help="skip the generic residual regression on the correlates (the 'unexplained' answer; never changes the selection)",
     )
+    p.add_argument(
+        "--no-reference",
+        action="store_true",
+        help="do not check an accepted effect against smafl fit's default model on the same split (default: where that "
+        "model holds out at the noise floor, the acceptance is withdrawn; diagnosis.json base.reference_fit)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
     return p
@@ -130,6 +136,7 @@ def run(args):
         refine=not args.no_refine,
         unexplained=not args.no_unexplained,
         naming=args.naming,
+        reference=not args.no_reference,
     )
     if len(records) > 1:
         return _several(records, out, settings)

@@ -43,6 +43,7 @@ from ._naming import (
     whole_record_name,
     whole_record_ranking,
 )
+from ._reference import reference_heldout, withdrawal
 from ._residuals import (
     autocorrelation,
     candidate_signals,
@@ -129,4 +130,6 @@ __all__ = [
     "WHOLE_BASE_MAX",
     "name_on_whole_record",
     "rename",
+    "reference_heldout",
+    "withdrawal",
 ]

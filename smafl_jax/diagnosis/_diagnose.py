@@ -1470,6 +1470,7 @@ def diagnose(
     refine=True,
     unexplained=True,
     naming="whole",
+    reference=True,
 ) -> Diagnosis:
     """Full diagnosis of one record; returns a `Diagnosis` (selected effects, models, split, diagnosis.json content).
 
@@ -1493,6 +1494,10 @@ def diagnose(
     ``naming="whole"`` (default, calibrated rule): when the gates accept an effect, the name is chosen on the whole
     record (`smafl_jax.diagnosis._naming`: every fitted candidate refitted on every sample, the largest gain named if
     it is >= ``min_gain``, else nothing); ``naming="split"`` keeps the gates' best held-out candidate (earlier versions).
+
+    ``reference`` (calibrated rule): when the gates accept an effect, `smafl fit`'s default structure is fitted on the
+    same split (`smafl_jax.diagnosis._reference`); where it holds out at the noise floor (`BASE_AT_FLOOR`) the
+    acceptance is withdrawn and the naming goes on as for a base at the floor (``report["base"]["reference_fit"]``).
 
     ``unexplained`` (after the selection, never changing it): ``report["unexplained"]`` says whether the held-out
     residual still has structure, names its strongest correlate and scores a generic, clearly labelled ridge
@@ -1654,6 +1659,17 @@ def diagnose(
     # named on the whole record: what the gates accepted, or, with the base at the noise floor on the held-out block
     # (the gates not run), what the whole record shows (independent records: true effects held out at +8-9 % there)
     at_floor = rule == "calibrated" and _at_noise_floor(base_h, noise_sd) is not None
+    reference_doc, withdrawn = None, {}
+    if rule == "calibrated" and reference and selected and not at_floor:
+        # what the gates accepted may only make up for the diagnosis's lighter base fit (`_reference`)
+        from ._reference import reference_heldout, withdrawal
+
+        _log("diagnose: smafl fit's default structure on the same split (reference)", verbose)
+        reference_doc = reference_heldout(record, split, noise_sd)
+        withdrawn, warning = withdrawal(selected, reference_doc, base_h / noise_sd if noise_sd else np.nan, BASE_AT_FLOOR)
+        if withdrawn:
+            warnings.append(warning)
+            selected, chosen, ambiguous, at_floor = [], base, [], True
     if rule == "calibrated" and naming == "whole" and (selected or at_floor) and NONLOCAL_MEMORY["name"] not in selected:
         from ._naming import name_on_whole_record
 
@@ -1688,6 +1704,9 @@ def diagnose(
             sort=True,
         )[0]
     _decisions(candidates, selected, ambiguous, rule, unspecific, cal["ambiguity"])
+    for c in candidates:
+        if c["name"] in withdrawn:
+            c["decision"] = f"passes the gates; not selected: {withdrawn[c['name']]}"
     if naming_doc is not None:
         from ._naming import naming_decisions
 
@@ -1739,6 +1758,7 @@ def diagnose(
             "information_criteria": base_ic,
             "fit": base_info,
             "start": _start_doc(base, screened),
+            "reference_fit": reference_doc,
         },
         "split": {
             "kind": split.kind,

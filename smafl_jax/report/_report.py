@@ -130,6 +130,13 @@ def _noise_lines(noise):
     ]
 
 
+def _reference_lines(ref):
+    """The table row of `smafl fit`'s default model on the same split, where the diagnosis fitted it (`_reference`)."""
+    if not ref or ref.get("heldout_rmse") is None:
+        return []
+    return [f"| reference: {ref['rule']} | - | {ref['heldout_rmse']:.4g} | - |"]
+
+
 def _report_md(rec, res):
     b, x = res["base"], res["extended"]
     u = unit_of(rec.output_name, getattr(rec, "units", None)) or f"units of '{rec.output_name}'"
@@ -149,6 +156,7 @@ def _report_md(rec, res):
         "|---|---|---|---|",
         f"| base | {b['train_rmse']:.4g} | {b['heldout_rmse']:.4g} | {b['heldout']['e_r_percent']:.2f} |",
         f"| extended ({', '.join(res['selected']) or 'none'}) | {x['train_rmse']:.4g} | {x['heldout_rmse']:.4g} | {x['heldout']['e_r_percent']:.2f} |",
+        *_reference_lines(b.get("reference_fit")),
         *_noise_lines(res.get("noise")),
         "",
         "## Base residuals",
