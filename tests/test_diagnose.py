@@ -1077,3 +1077,24 @@ def test_diagnose_withdraws_what_the_gates_accept_when_the_reference_is_at_the_f
         c["decision"].startswith("passes the gates; not selected: smafl fit's default model")
         or c["decision"].startswith("selected: named on the whole record")
     )
+
+
+def test_ranking_gains_are_measured_from_the_best_base_any_fit_found():
+    """A candidate whose refinement ends with its effect switched off and a lower RMSE found a better base, not an
+    effect (a clean plant-A record, s311: four effects at strength 0 each 'gained' 8.3 %); a base part equal to the
+    base up to rounding leaves it as it was."""
+    from smafl_jax.diagnosis import rebase_ranking
+
+    rows = [
+        {"name": "creep", "rmse": 0.89, "base_part_rmse": 0.95},
+        {"name": "delay", "rmse": 0.917, "base_part_rmse": 0.917},  # fitted at strength 0
+        {"name": "sensor_lag", "rmse": 0.917, "base_part_rmse": 0.9170001},
+    ]
+    by = {"split choice": 1.0}
+    chosen, rb = rebase_ranking(rows, by, "split choice")
+    assert chosen == "base part of the delay fit" and rb == 0.917 and by[chosen] == 0.917
+    assert [r["name"] for r in rows] == ["creep", "delay", "sensor_lag"]
+    assert abs(rows[0]["gain"] - (1 - 0.89 / 0.917)) < 1e-12 and rows[1]["gain"] == 0.0 and rows[2]["gain"] == 0.0
+    rows = [{"name": "delay", "rmse": 0.5, "base_part_rmse": 1.0 - 1e-9}]
+    by = {"lag 1": 1.0}
+    assert rebase_ranking(rows, by, "lag 1") == ("lag 1", 1.0) and rows[0]["gain"] == 0.5 and list(by) == ["lag 1"]

@@ -39,6 +39,7 @@ from ._naming import (
     WHOLE_LOOKALIKE_SHARE,
     name_on_whole_record,
     naming_decisions,
+    rebase_ranking,
     rename,
     whole_record_name,
     whole_record_ranking,
@@ -130,6 +131,7 @@ __all__ = [
     "WHOLE_BASE_MAX",
     "name_on_whole_record",
     "rename",
+    "rebase_ranking",
     "reference_heldout",
     "withdrawal",
 ]
