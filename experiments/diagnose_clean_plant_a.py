@@ -4,7 +4,7 @@ The blind benchmark (`diagnose_independent.py`) keeps its records short (2000-40
 what issue 18's matrix draws: 10 minutes, a random drive family, sample rate 5-100 Hz, start (cold / warm / mid) and
 sensor orientation (tests/indep_plant.py, plain numpy, no smafl_jax), and no effect at all.  Each record is written as
 CSV and diagnosed by the CLI exactly as a user runs it; the table gives the base's training / held-out RMSE over the
-plant's true noise SD, what the calibrated gates accepted (diagnosis.json naming.split_selected), what was named, the
+plant's true noise SD, every effect the calibrated gates accepted, what was named, the
 reference fit where one ran, and the time.
 
     python experiments/diagnose_clean_plant_a.py --seeds 301 302 --out /tmp/clean_a     # ~4-20 min per record
@@ -43,7 +43,7 @@ def run(seed: int, out: Path) -> None:
 
 def table(out: Path) -> list[str]:
     rows = [
-        "| record | drive | rate (Hz) | samples | start | sensor | base train / held-out (x noise) | gates | named | "
+        "| record | drive | rate (Hz) | samples | start | sensor | base train / held-out (x noise) | gates accepted | named | "
         "reference (x noise) | s |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -52,9 +52,7 @@ def table(out: Path) -> list[str]:
         tr = json.loads((out / f"a{seed}.truth.json").read_text())
         d = json.loads(f.read_text())
         sd, m, b = tr["noise_sd"], tr["meta"], d["base"]
-        gates = (d.get("naming") or {}).get("split_selected")
-        if gates is None:  # no naming doc: the gates' own choice is what was selected
-            gates = d["selected"]
+        gates = [c["name"] for c in d["candidates"] if (c.get("calibration") or {}).get("accepted")]
         ref = (b.get("reference_fit") or {}).get("heldout_rmse")
         rows.append(
             f"| a{seed} | {m['drive']} | {m['rate_hz']:.1f} | {m['n']} | {tr['truth']['thermal']['start']} | "
