@@ -25,7 +25,7 @@ def reference_heldout(record, split, noise_sd) -> dict | None:
     The reference is `smafl fit REC --split time` with its defaults, stopped after the split fit (no whole-record
     refit): trained on the same first part of the record and scored on the same last part (`data.split.time_block`,
     checked by the first held-out time).  None where the diagnosis's split is not a time block (a branch split is
-    chosen differently by `smafl fit`) or where that fit refuses the record.
+    chosen differently by `smafl fit`); a dict with ``error`` and no noise multiple where that fit refuses the record.
     """
     if split.kind != "time" or len(split.test) != 1:
         return None
