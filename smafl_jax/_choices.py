@@ -27,7 +27,7 @@ MODELS = (
     *(f"cascade-{k}" for k in HYSTERESIS if k != "eupi"),
 )
 #: Validation split rules of one record.
-SPLITS = ("auto", "time", "branch", "none")
+SPLITS = ("auto", "time", "branch", "interleaved", "none")
 #: Operator-memory options of `smafl fit --memory`: "auto", "fitted", "rule" and the initial-state rules a fit
 #: screens (the union of the registered models' `AbstractHysteresis.RULE_INITS`; a test checks it).
 MEMORY = ("auto", "fitted", "rule", "descended", "zero", "from_top")

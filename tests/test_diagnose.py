@@ -313,8 +313,9 @@ def test_creep_fit_stays_bounded(truth, drives):
     t = np.arange(u.size) * dt
     y = np.asarray(sj.simulate(eupi, u)) + 0.004 * t  # +1.6 mm ramp over 400 s
     rec = Record.from_arrays(t, u, y, input_name="voltage_V", output_name="displacement_mm")
-    split = make_split(rec)
+    split = make_split(rec)  # the bound is the training stretch: 70 % of the record for a time block
     ctx = _context(split)
+    assert _context(make_split(rec, kind="interleaved"))["duration"] == pytest.approx(u.size * dt)  # trained throughout
     lo, hi = Creep.tau_bounds(dt, ctx["duration"])
     assert lo == 2 * dt and hi == pytest.approx(0.7 * u.size * dt)
     m0 = ExtendedModel(eupi, (Creep(g=jnp.asarray(0.1), tau=jnp.asarray(30.0)),))
@@ -598,6 +599,58 @@ def test_split_coverage_flags_an_untrained_branch():
     assert cov2["covered_fraction"] > 0.95 and "warning" not in cov2
 
 
+def test_diagnosis_split_interleaves_where_the_time_block_extrapolates():
+    """`make_split` kind "auto": the time block where its training part covers the held-out input, else interleaved
+    blocks (`data.split`'s rule); "time" / "interleaved" force one; the nulls' kind repeats the split."""
+    from smafl_jax.diagnosis import make_split, split_coverage, state_coverage
+    from smafl_jax.diagnosis._diagnose import _kind_of  # private: the kind the null records are split by
+
+    t = np.arange(1000) * 0.1
+    # heat, hold hot, cool: the time block holds the only cooling step (as above)
+    u = np.where(t < 10, 25 + 5.5 * t, np.where(t < 75, 80.0, np.maximum(80 - 5.5 * (t - 75), 25.0)))
+    rec = sj.Record.from_arrays(t, u, np.tanh((u - 50) / 10), input_name="temperature_C", output_name="length")
+    auto, tb = make_split(rec, kind="auto"), make_split(rec)  # the time block is the default
+    assert tb.kind == "time" and split_coverage(tb)["covered_fraction"] < 0.9
+    assert auto.kind == "interleaved" and split_coverage(auto)["covered_fraction"] > split_coverage(tb)["covered_fraction"]
+    (tr,), (te,) = auto.train, auto.test
+    assert tr.u.size == te.u.size == 1000 and not np.any(tr.mask & te.mask) and np.all(tr.mask | te.mask)
+    assert np.all(tr.mask[:100]) and 0.25 < te.mask.mean() < 0.35  # the first block (initial state) trains
+    assert _kind_of(auto) == "interleaved" and _kind_of(tb) == "time"
+    # the same input with another output (a null record) gives the same blocks
+    rec_null = sj.Record.from_arrays(t, u, np.zeros(1000), input_name="temperature_C", output_name="length")
+    assert np.array_equal(make_split(rec_null, kind=_kind_of(auto)).test[0].mask, te.mask)
+    # a repeated cycle keeps the time block
+    u2 = np.tile(u[::4], 4)
+    rec2 = sj.Record.from_arrays(t, u2, np.tanh((u2 - 50) / 10), input_name="temperature_C", output_name="length")
+    assert make_split(rec2, kind="auto").kind == "time" and make_split(rec2, kind="interleaved").kind == "interleaved"
+    with pytest.raises(sj.UserInputError, match="split must be one of"):
+        make_split(rec, kind="random")
+    # the thermal-state coverage is measured on the interleaved blocks too
+    tv = np.arange(600) * 0.5
+    v = np.clip(tv / 150.0, 0, 2.0)  # a slow ramp: the time block holds the highest levels
+    recv = sj.Record.from_arrays(tv, v, v**2, input_name="voltage_V", output_name="displacement_mm")
+    from smafl_jax.diagnosis import choose_base
+
+    base0, _ = choose_base(recv)
+    sp = make_split(recv, kind="auto")
+    assert sp.kind == "interleaved" and state_coverage(base0, sp) is not None
+
+
+def test_fit_split_masks_interleaved_match_the_diagnosis():
+    """`smafl fit --split interleaved` scores the samples `data.split.interleaved` holds out (the diagnosis's
+    reference fit relies on it)."""
+    from smafl_jax.data import split as dsplit
+
+    t = np.arange(800) * 0.1
+    u = np.clip(t / 40.0, 0, 1.5)
+    rec = sj.Record.from_arrays(t, u, u, input_name="voltage_V", output_name="displacement_mm")
+    tr, va, info = sj.split_masks(rec, "interleaved")
+    assert info["kind"] == "interleaved" and np.array_equal(va, dsplit.interleaved(rec).test[0].mask)
+    assert np.array_equal(tr, ~va) and va.any() and not va[:80].any()
+    with pytest.raises(sj.UserInputError, match="holdout fraction"):
+        sj.split_masks(rec, "interleaved", val_fraction=1.5)
+
+
 # -- calibrated selection (issue 13) ----------------------------------------------------
 
 
@@ -631,6 +684,10 @@ def test_fold_splits_partition_the_record():
     folds = fold_splits(rec, 3)
     held = np.stack([f.test[0].mask for f in folds])
     assert np.array_equal(held.sum(axis=0), np.ones(300))  # every sample held out exactly once
+    # interleaved folds (the main split interleaved): every sample but the first block's held out exactly once
+    held_i = np.stack([f.test[0].mask for f in fold_splits(rec, 3, kind="interleaved")])
+    assert np.array_equal(held_i.sum(axis=0), np.r_[np.zeros(30), np.ones(270)])
+    assert all(np.count_nonzero(np.diff(np.flatnonzero(h)) > 1) >= 2 for h in held_i)  # three blocks apart
     for f in folds:
         assert np.array_equal(f.train[0].mask, ~f.test[0].mask) and f.test[0].u.size == 300  # run from t = 0
         idx = np.flatnonzero(f.test[0].mask)
@@ -1050,6 +1107,54 @@ def test_reference_fit_reaches_the_floor_on_a_clean_record_of_its_class_and_skip
     assert reference_heldout(branch, make_split(branch), 0.003) is None
 
 
+def test_reference_fit_on_an_interleaved_split_scores_the_same_samples(monkeypatch):
+    """On an interleaved split the reference is `smafl fit --split interleaved` (stand-in fit: the samples it would
+    score are checked against the diagnosis's held-out mask)."""
+    import smafl_jax.report._report_fit as rf  # private: the stand-in for the 30-s reference fit
+    from smafl_jax.diagnosis import make_split, reference_heldout
+
+    seen = []
+
+    def stand_in(record, *, split, val_fraction, **kw):
+        seen.append((split, sj.split_masks(record, split, val_fraction=val_fraction)[1]))
+        return None, {"metrics": {"validation": {"rmse": 0.006}}, "model": {"type": "Cascade"}}, None
+
+    monkeypatch.setattr(rf, "_fit_structure", stand_in)
+    t = np.arange(800) * 0.1
+    u = np.clip(t / 40.0, 0, 1.5)  # a ramp: the time block extrapolates, so the diagnosis interleaves
+    rec = sj.Record.from_arrays(t, u, u, input_name="voltage_V", output_name="displacement_mm")
+    sp = make_split(rec, kind="auto")
+    ref = reference_heldout(rec, sp, 0.003)
+    assert sp.kind == "interleaved" and seen[0][0] == "interleaved" and np.array_equal(seen[0][1], sp.test[0].mask)
+    assert ref["over_noise"] == pytest.approx(2.0) and "interleaved" in ref["rule"]
+    ref_t = reference_heldout(rec, make_split(rec, kind="time"), 0.003)
+    assert seen[1][0] == "time" and np.array_equal(seen[1][1], make_split(rec, kind="time").test[0].mask)
+    assert "first 70 %" in ref_t["rule"]
+
+
+def test_diagnose_on_an_interleaved_split_interleaves_its_folds(truth, drives):
+    """``diagnose(split="interleaved")``: the held-out blocks, the fold test's folds and the null records all
+    interleaved (diagnosis.json says which blocks)."""
+    rec = _eupi_accumulation_record(truth, drives, 0.15, seed=21)
+    res = diagnose(
+        rec,
+        effects=["strain_accumulation"],
+        refit=False,
+        verbose=False,
+        n_null=2,
+        seed=3,
+        refine=False,
+        unexplained=False,
+        reference=False,
+        split="interleaved",
+    ).report
+    assert res["split"]["kind"] == "interleaved" and res["split"]["heldout"][0].split(": ")[1].startswith("blocks ")
+    folds = res["candidates"][0]["calibration"]["folds"]
+    assert [f["heldout"][0] for f in folds] == ["blocks 3,6,9", "blocks 1,4,7", "blocks 2,5,8"]
+    with pytest.raises(sj.UserInputError, match="split must be one of"):
+        diagnose(rec, split="branch")
+
+
 def test_diagnose_withdraws_what_the_gates_accept_when_the_reference_is_at_the_floor(truth, drives, monkeypatch, tmp_path):
     import smafl_jax.diagnosis._reference as ref_mod  # private: the stand-in for the 30-s reference fit
     from smafl_jax.report import write_diagnosis
@@ -1068,7 +1173,7 @@ def test_diagnose_withdraws_what_the_gates_accept_when_the_reference_is_at_the_f
     res = diag.report
     write_diagnosis(tmp_path, rec, diag)
     assert "| reference: stand-in | - |" in (tmp_path / "report.md").read_text()
-    assert calls == ["time"] and res["base"]["reference_fit"]["over_noise"] == 1.0
+    assert calls == [res["split"]["kind"]] and res["base"]["reference_fit"]["over_noise"] == 1.0
     assert any(w.startswith("the calibrated gates accepted strain_accumulation, but") for w in res["warnings"])
     # the naming then goes on as for a base at the floor: named on the whole record only if it holds out no worse
     assert res["naming"]["split_selected"] == [] and res["naming"]["base_at_noise_floor"]

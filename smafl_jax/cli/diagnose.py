@@ -92,6 +92,14 @@ def add_parser(sub):
         help="do not check an accepted effect against smafl fit's default model on the same split (default: where that "
         "model holds out at the noise floor, the acceptance is withdrawn; diagnosis.json base.reference_fit)",
     )
+    p.add_argument(
+        "--split",
+        choices=("time", "interleaved", "auto"),
+        default="time",
+        help="held-out samples of a record without a branch column: 'time' (default: the last 30 %%), 'interleaved' "
+        "(every third of ten blocks but the first; the fold test interleaved too) or 'auto' (the time block unless the "
+        "first 70 %% covers less than 90 %% of its input levels and directions, then interleaved)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)
     return p
@@ -137,6 +145,7 @@ def run(args):
         unexplained=not args.no_unexplained,
         naming=args.naming,
         reference=not args.no_reference,
+        split=args.split,
     )
     if len(records) > 1:
         return _several(records, out, settings)

@@ -48,9 +48,13 @@ def add_parser(sub):
         "--split",
         choices=SPLITS,
         default="auto",
-        help="validation split: branch (every 3rd branch), time (last part), none; auto = branch if a 'branch' column exists",
+        help="validation split: branch (every 3rd branch), time (last part), interleaved (every 3rd of 10 blocks, not "
+        "the first: for a record whose last part leaves the levels the first part visited), none; auto = branch if a "
+        "'branch' column exists, else time",
     )
-    p.add_argument("--val-fraction", type=float, default=0.3, help="held-out fraction for the time split (default 0.3)")
+    p.add_argument(
+        "--val-fraction", type=float, default=0.3, help="held-out fraction for the time or interleaved split (default 0.3)"
+    )
     p.add_argument(
         "--solver",
         choices=SOLVERS,

@@ -282,7 +282,7 @@ def interleaved(record: Record, holdout_fraction: float = HOLDOUT_FRACTION, *, n
             continue
         label = "blocks " + ",".join(str(j) for j in chosen)
         rule = (
-            f"interleaved blocks: {len(blocks)} equal blocks, every {every}th held out from block {off} "
+            f"interleaved blocks: {len(blocks)} equal blocks, one in every {every} held out from block {off} "
             f"({test.mean():.0%} of the samples), the offset whose held-out part the training part covers best; "
             "model run through the whole record"
         )

@@ -17,18 +17,20 @@ import time
 import numpy as np
 
 from .._errors import UserInputError
+from ..data.split import HOLDOUT_FRACTION
 
 
 def reference_heldout(record, split, noise_sd) -> dict | None:
     """Held-out RMSE of `smafl fit`'s default structure on the diagnosis's held-out block, with the noise multiple.
 
-    The reference is `smafl fit REC --split time` with its defaults, stopped after the split fit (no whole-record
-    refit): trained on the same first part of the record and scored on the same last part (`data.split.time_block`,
-    checked by the first held-out time).  None where the diagnosis's split is not a time block (a branch split is
-    chosen differently by `smafl fit`); a dict with ``error`` and no noise multiple where that fit refuses the record.
+    The reference is `smafl fit REC --split time` (or ``--split interleaved``) with its defaults, stopped after the
+    split fit (no whole-record refit): trained and scored on the diagnosis's own samples (`data.split.time_block` or
+    `data.split.interleaved`, checked mask for mask).  None where the split is neither (a branch split is chosen
+    differently by `smafl fit`); a dict with ``error`` and no noise multiple where that fit refuses the record.
     """
-    if split.kind != "time" or len(split.test) != 1:
+    if split.kind not in ("time", "interleaved") or len(split.test) != 1:
         return None
+    from ..identify._split import split_masks
     from ..report._report_fit import _fit_structure
 
     mask = np.asarray(split.test[0].mask, dtype=bool)
@@ -36,22 +38,28 @@ def reference_heldout(record, split, noise_sd) -> dict | None:
     if mask.shape != (n,) or not mask.any():
         return None
     first = int(np.flatnonzero(mask)[0])
-    fraction = (n - first) / n
+    # the time block's fraction from its first held-out sample; the interleaved rule's own (`data.split.interleaved`)
+    fraction = (n - first) / n if split.kind == "time" else HOLDOUT_FRACTION
+    try:
+        same = np.array_equal(split_masks(record, split.kind, val_fraction=fraction)[1], mask)
+    except UserInputError:
+        same = False
+    if not same:  # `smafl fit` would score other samples: no reference
+        return None
     t0 = time.time()
     try:
-        _, doc, _ = _fit_structure(record, model="auto", split="time", val_fraction=fraction, refit=False)
+        _, doc, _ = _fit_structure(record, model="auto", split=split.kind, val_fraction=fraction, refit=False)
     except UserInputError as e:  # a record the default fit refuses: no reference, said in diagnosis.json
         return {"rule": "smafl fit's default structure", "error": str(e), "over_noise": None}
     val = (doc.get("metrics") or {}).get("validation")
-    start = (doc.get("split") or {}).get("validation_start_time_s")
-    t_first = float(record.time[first])
-    if not val or start is None or abs(float(start) - t_first) > 0.5 * float(record.dt):
+    if not val:
         return None
     rmse = float(val["rmse"])
+    trained = f"first {100 * (1 - fraction):.3g} %" if split.kind == "time" else "same interleaved blocks"
     return {
         "rule": (
-            f"smafl fit's default structure ({doc['model'].get('type', '?')}), split fit only: trained on the same "
-            f"first {100 * (1 - fraction):.3g} % and scored on the diagnosis's held-out block"
+            f"smafl fit's default structure ({doc['model'].get('type', '?')}), split fit only: trained on the {trained} "
+            "and scored on the diagnosis's held-out samples"
         ),
         "heldout_rmse": rmse,
         "over_noise": rmse / noise_sd if noise_sd else None,

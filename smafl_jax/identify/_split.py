@@ -13,6 +13,10 @@ Rules (fixed, documented, never tuned to a result):
   excursion in FORC data) always trains, so validation is interpolation
   between trained branches, not extrapolation.
 - ``"time"``: the last ``val_fraction`` (default 30 %) of the samples.
+- ``"interleaved"``: every third of ten equal blocks held out (not the first), at the offset whose held-out part
+  the training part covers best (`smafl_jax.data.split.interleaved`): for a record whose last part leaves the
+  levels or directions the first part visited (a slow ramp, a triangle), where the time block measures
+  extrapolation.  Chosen explicitly; ``"auto"`` keeps the time block.
 - ``"none"``: everything trains; there are no validation metrics.
 - ``"auto"``: ``"branch"`` when the record has a ``branch`` column, else ``"time"``.
 
@@ -94,6 +98,18 @@ def _split_masks(record, split, *, val_fraction, branch_column):
             "rule": f"last {val_fraction:.0%} of the samples held out",
             "val_fraction": float(val_fraction),
             "validation_start_time_s": float(record.time[n - n_val]),
+        }
+        return ~val, val, info
+    if split == "interleaved":
+        from ..data.split import interleaved
+
+        sp = interleaved(record, val_fraction)
+        val = np.asarray(sp.test[0].mask, bool).copy()
+        info = {
+            "kind": "interleaved",
+            "rule": sp.rule,
+            "val_fraction": float(val_fraction),
+            "validation_blocks": sp.test_labels[0],
         }
         return ~val, val, info
     if branch_column not in record.extra:
