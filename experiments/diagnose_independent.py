@@ -34,14 +34,16 @@ def _label(sel):
     return "+".join(sel) if sel else "none"
 
 
-def run_one(name, seed, folder, n_null, fpr):
+def run_one(name, seed, folder, n_null, fpr, split="time"):
     import smafl_jax as sj
     from smafl_jax.diagnosis import diagnose
 
     path, case = ie.write_effect_record(folder, name, seed)
     rec = sj.load_record(path)
     t0 = time.time()
-    res = diagnose(rec, refit=False, verbose=True, rule="calibrated", compare_legacy=True, n_null=n_null, fpr=fpr).report
+    res = diagnose(
+        rec, refit=False, verbose=True, rule="calibrated", compare_legacy=True, n_null=n_null, fpr=fpr, split=split
+    ).report
     noise = case["noise_rms_measured"]
     return {
         "truth": name,
@@ -76,6 +78,7 @@ def run_one(name, seed, folder, n_null, fpr):
         ],
         "evidence_top3": res["evidence_ranking"][:3],
         # how much of the held-out block the training part saw (input; the base's thermal state), and what the user was told
+        "split_kind": res["split"]["kind"],
         "heldout_coverage": (res["split"].get("coverage") or {}).get("covered_fraction"),
         "heldout_state_coverage": (res["split"].get("state_coverage") or {}).get("covered_fraction"),
         "warnings": res.get("warnings", []),
@@ -161,6 +164,7 @@ def main(argv=None) -> int:
     ap.add_argument("--fpr", type=float, default=0.01)
     ap.add_argument("--truths", nargs="*", default=list(ie.TRUTHS), help=f"any of {ie.ALL_TRUTHS}")
     ap.add_argument("--out", default=str(OUT))
+    ap.add_argument("--split", default="time", choices=("time", "interleaved", "auto"), help="diagnose's split rule")
     ap.add_argument("--fpr-check", type=int, default=0, help="only measure the false-positive rate on N clean records")
     a = ap.parse_args(argv)
     from smafl_jax import atomic_write_json, atomic_write_text, to_jsonable
@@ -176,7 +180,7 @@ def main(argv=None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in a.truths:
-            r = run_one(name, a.seed + 1000 * ie.ALL_TRUTHS.index(name), tmp, a.n_null, a.fpr)
+            r = run_one(name, a.seed + 1000 * ie.ALL_TRUTHS.index(name), tmp, a.n_null, a.fpr, a.split)
             rows.append(r)
             print(
                 f"{name:>20s}: old {_label(r['selected_old'])}, new {_label(r['selected_new'])}; base held-out RMSE "
@@ -199,7 +203,7 @@ def main(argv=None) -> int:
         "wrong_effect_selected_old": sum(1 for r in rows if r["selected_old"] and _label(r["selected_old"]) != r["truth"]),
         "base_heldout_over_noise": {r["truth"]: r["base_heldout_over_noise"] for r in rows},
         "effect_over_noise": snr,
-        "settings": {"seed": a.seed, "n_null": a.n_null, "fpr": a.fpr, "n_folds": 3, "min_gain": 0.05},
+        "settings": {"seed": a.seed, "n_null": a.n_null, "fpr": a.fpr, "n_folds": 3, "min_gain": 0.05, "split": a.split},
         "command": "python experiments/diagnose_independent.py " + " ".join(argv if argv is not None else sys.argv[1:]),
     }
     lines = [
