@@ -279,7 +279,7 @@ def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2, kin
 
     With a ``branch`` column: of the sorted branch labels, positions ``i % 3 == holdout_residue`` (default
     2) are held out, position 0 (the major loop) always trains (`data.split.branches`); other residues
-    (0, 1) give the cross-validation folds of a branch record.  Otherwise ``kind``: ``"time"`` the time block
+    (0, 1) give the cross-validation folds of a branch record.  Otherwise ``kind``: ``"time"`` (default) the time block
     (`data.split.time_block`; the model is run from t = 0), ``"interleaved"`` every third of ten blocks
     (`data.split.interleaved`; the model runs through the whole record), ``"auto"`` the time block where the
     training part covers at least 90 % of the held-out part's input levels and directions, else interleaved
