@@ -9,6 +9,7 @@ reference fit where one ran, and the time.
 
     python experiments/diagnose_clean_plant_a.py --seeds 301 302 --out /tmp/clean_a     # ~4-20 min per record
     python experiments/diagnose_clean_plant_a.py --out /tmp/clean_a --table             # the table of a finished run
+    python experiments/diagnose_clean_plant_a.py --seeds 309 --split auto --out /tmp/clean_auto   # another split rule
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import indep_plant as ip  # noqa: E402  (plain numpy; shares no code with smafl_
 MINUTES = 10.0
 
 
-def run(seed: int, out: Path) -> None:
+def run(seed: int, out: Path, split: str | None = None) -> None:
     csv = out / f"a{seed}.csv"
     if not csv.exists():
         ip.write_csv(csv, ip.make_record(seed, minutes=MINUTES))
@@ -36,6 +37,7 @@ def run(seed: int, out: Path) -> None:
         print(f"a{seed}: {folder} exists; not rerun", flush=True)
         return
     cmd = [sys.executable, "-m", "smafl_jax", "diagnose", str(csv), "--out", str(folder), "--quiet"]
+    cmd += [] if split is None else ["--split", split]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     with open(out / f"a{seed}.log", "w") as log:
         subprocess.run(cmd, check=True, stdout=log, stderr=subprocess.STDOUT, env=env)
@@ -68,11 +70,12 @@ def main(argv=None) -> None:
     ap.add_argument("--seeds", type=int, nargs="*", default=[])
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--table", action="store_true", help="only print the table of the records diagnosed in --out")
+    ap.add_argument("--split", choices=("time", "interleaved", "auto"), help="passed to smafl diagnose (default: its own)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     if not args.table:
         for s in args.seeds:
-            run(s, args.out)
+            run(s, args.out, args.split)
     print("\n".join(table(args.out)))
 
 

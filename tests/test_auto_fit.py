@@ -129,6 +129,7 @@ def test_screening_finds_the_sensor_orientation_on_independent_records(orientati
     assert model.thermal.init == "given"
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_screening_keeps_the_right_sign_of_a_record_that_starts_warm():
     # an independent plant started warm, its operators at random places, read by a length sensor: on the steady and cold
     # starts the right sign ("falls") scored about 30x the wrong one and was dropped before its warm starts were tried

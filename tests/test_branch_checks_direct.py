@@ -6,6 +6,7 @@ training record walked (before: only cascades of one record had the check).
 """
 
 import numpy as np
+import pytest
 
 import smafl_jax as sj
 from smafl_jax.identify import write_records_outputs
@@ -61,6 +62,7 @@ def test_trained_branches_of_keeps_each_trajectory_apart():
     assert "warning" in branch_check(a[:99][::-1], apart, dt=DT)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_direct_input_fit_stores_branches_and_simulate_warns(tmp_path):
     model, doc, masks = fit_record(_record(_sawtooth(), "train"), refit=True, **FAST)
     tb = doc["data"]["trained_branches"]

@@ -55,6 +55,7 @@ def test_one_record_steady_start_is_screened_as_the_steady_rule():
     np.testing.assert_allclose(float(one.thermal.k1), float(two.thermal.k1), rtol=1e-9)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_voltage_and_heat_cascades_share_their_compiled_programs():
     """What a cascade's hysteresis sees is data inside the jitted entry points (`Cascade.compile_form`): the start
     screening's voltage and heat candidates compiled every design, simulation and LM solve twice before (session 52:

@@ -1132,6 +1132,21 @@ def test_reference_fit_on_an_interleaved_split_scores_the_same_samples(monkeypat
     assert "first 70 %" in ref_t["rule"]
 
 
+def test_library_and_cli_diagnose_on_the_auto_split_by_default():
+    """Session 70: `diagnose` and `smafl diagnose` both default to ``split="auto"`` (measured on the blind records
+    it moves; docs/diagnosis.md, "Interleaved split"), and the CLI offers exactly the library's split rules."""
+    import inspect
+
+    from smafl_jax.cli import build_parser
+    from smafl_jax.diagnosis._diagnose import DIAGNOSIS_SPLITS  # private: the rules the library accepts
+
+    assert inspect.signature(diagnose).parameters["split"].default == "auto"
+    args = build_parser("diagnose").parse_args(["diagnose", "rec.csv", "--out", "d"])
+    assert args.split == "auto"
+    for kind in DIAGNOSIS_SPLITS:
+        assert build_parser("diagnose").parse_args(["diagnose", "rec.csv", "--out", "d", "--split", kind]).split == kind
+
+
 def test_diagnose_on_an_interleaved_split_interleaves_its_folds(truth, drives):
     """``diagnose(split="interleaved")``: the held-out blocks, the fold test's folds and the null records all
     interleaved (diagnosis.json says which blocks)."""

@@ -117,6 +117,7 @@ def test_weights_exclude_samples(rng):
     np.testing.assert_allclose(a.model.linear_weights(), b.model.linear_weights(), rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_deterministic(datasets_dir):
     data = _short_steps(datasets_dir, every=4)
     a = sj.fit(sj.Cascade.from_range(7.4), data, max_steps=20)
@@ -318,6 +319,7 @@ def test_fit_says_when_it_would_run_on_an_accelerator(monkeypatch):
     assert "JAX_PLATFORMS=cpu" in _accelerator_note()
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_cli_fit_names_the_class_whose_refinement_did_not_converge(tmp_path, datasets_dir, capsys):
     """A refinement stopped by --max-steps is a warning that names the fitted class (with --model auto several are
     refined; a new-user trial read the kept one's message as a failure of the whole fit)."""

@@ -127,6 +127,7 @@ def test_padded_joint_refinement_is_the_unpadded_one():
     _same_fit(m0, m1)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_nearby_lengths_share_the_fit_programs():
     (a,), model = _records((601,))
     sj.fit(model, a, max_steps=10)

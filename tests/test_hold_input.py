@@ -64,6 +64,7 @@ def temperature_record(tmp_path_factory, direct_record_csv):
     return direct_record_csv(path, 3, "temperature_C", n=500, dt=0.1, u_lo=25.0, u_span=50.0)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_fit_holds_a_directly_measured_input_unless_its_validation_says_otherwise(temperature_record):
     opts = dict(model="eupi", max_steps=3, refit=False)
     model, doc, (train, _, _) = fit_record(temperature_record, hold_input="on", **opts)
@@ -87,6 +88,7 @@ def test_fit_holds_a_directly_measured_input_unless_its_validation_says_otherwis
         fit_record(temperature_record, hold_input="yes", **opts)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_a_cascade_is_held_below_its_trained_thermal_range_only(tmp_path):
     """auto holds a cascade's thermal state at the low edge of its trained range (colder than ever trained: no
     extrapolation) and lets it extrapolate above; on holds both sides; a record that reached the ambient holds nothing."""
@@ -124,6 +126,7 @@ def test_a_cascade_is_held_below_its_trained_thermal_range_only(tmp_path):
     assert any("held at or above" in line for line in sj.load_model(path).describe())
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):
     """A joint fit's folds are held to their own training records' range, as the saved model is: a held-out record
     that leaves that range is predicted alike up to its first exit and differently after it."""
@@ -155,6 +158,7 @@ def test_leave_one_record_out_scores_the_held_fold_model(tmp_path):
         sj.fit_records(recs, hold_input="sometimes", **opts)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_the_split_model_is_scored_held_to_its_training_part(temperature_record):
     """The validation error (and the class comparison) is that of the split model as it would be saved: held to the
     range of its own training samples, while the saved model is held to the whole record's."""

@@ -30,6 +30,7 @@ def _record(tmp_path):
     return sj.load_record(path)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_both_inputs_are_refined_and_the_validation_samples_choose(tmp_path):
     rec = _record(tmp_path)
     pinned = dict(model="cascade", grid=SMALL, max_steps=5, orientation="rises", thermal_start="steady", refit=False)

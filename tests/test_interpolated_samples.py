@@ -73,6 +73,7 @@ def test_split_masks_and_segments_leave_interpolated_samples_out(tmp_path):
         assert not np.any(seg.mask & ~rec.measured[seg.index])
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_a_fit_does_not_see_interpolated_outputs(tmp_path):
     rec = sj.load_record(_bursty_csv(tmp_path / "b.csv", 3)[0], resample=0.1)
     _, doc_a, (tr, va, y_a) = fit_record(rec, refit=False, **FAST)

@@ -116,6 +116,7 @@ def test_search_only_where_the_memory_is_per_operator(rng):
         truth.with_memory_fractions(np.full(3, 0.5))
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_cascade_start_searches_memory_and_thermal_start_in_turn(rng):
     """A warm cascade record whose operators start at random positions: the screening's fitted-memory start
     (`fitted_memory_start`) is the searched one, below every common start, with the thermal rate near the truth."""

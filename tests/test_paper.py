@@ -41,6 +41,7 @@ def paper_run(tmp_path_factory):
     return _run_paper(work, "--real-data", str(work / "no_real_data"))
 
 
+@pytest.mark.slow  # suite time (session 70: 184 s on 2 cores, the default suite's costliest item; README command 1 runs it)
 def test_quick_report_files_figures_and_numbers(paper_run):
     # one test on the one paper run: with `pytest -n 2` two tests of this module may land on two workers, and a
     # module fixture then runs once per worker (the paper run is the suite's costliest item)

@@ -167,6 +167,7 @@ def test_step_counts_and_lines_stay_with_their_thread(caplog):
     assert not _progress._TAGS  # nothing left behind
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_a_rejected_refinement_refits_on_a_side_thread_with_the_same_result(tmp_path, monkeypatch):
     """The default class's whole-record refit of a refinement rejected on validation starts before the split fit's
     polish, on a thread of its own (`_fit_structure(early_refit=True)`); the refit is the one made after it."""

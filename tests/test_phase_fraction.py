@@ -107,6 +107,7 @@ def _numpy_plant(rng, n, dt, noise):
     return u, clean + noise * rng.standard_normal(n), clean
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_cascade_phase_fits_a_rescaled_branch_plant_to_its_noise(rng):
     """An independent plant whose reversal branches are rescaled (a Preisach or EUPI cascade cannot close its minor
     loops the plant's way): `fit_record(model="cascade-phase")` holds out at about the noise; the paper's EUPI cascade

@@ -449,11 +449,13 @@ def _voltage_record(rng, n=240):
     return smafl_jax.Record.from_arrays(DT * np.arange(n), u, y, input_name="voltage_V", output_name="displacement_mm")
 
 
-# suite time: the cascade (18 s) and cascade-preisach (20 s) cases are slow; the other classes (cascade-preisach-gauss,
-# a thermal one, for the K2 note) stay
+# suite time: of the thermal classes only cascade-phase (21 s on 2 cores; it carries the K2 note) stays in the default
+# suite (cascade 18 s, cascade-preisach 20 s; session 70: cascade-preisach-gauss 55 s, phase 34 s)
+_SLOW_REPORTS = ("cascade", "cascade-preisach", "cascade-preisach-gauss", "phase")
+
+
 @pytest.mark.parametrize(
-    "name",
-    [pytest.param(m, marks=pytest.mark.slow) if m in ("cascade", "cascade-preisach") else m for m in CHOICES if m != "auto"],
+    "name", [pytest.param(m, marks=pytest.mark.slow) if m in _SLOW_REPORTS else m for m in CHOICES if m != "auto"]
 )
 def test_fit_report_lists_the_saved_models_own_parameters_and_the_k2_note_for_a_lag_before_a_hysteresis(name, rng, tmp_path):
     rec = _voltage_record(rng)

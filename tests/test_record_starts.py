@@ -46,6 +46,7 @@ def test_each_record_runs_from_its_own_start_and_plain_simulate_refuses(tmp_path
         sj.JouleThermal(init="given", u0=np.ones((2, 2)))
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_fit_recovers_each_records_start(rng):
     """Known truth, the fit's own model class: two records of one plant, one cold and one warm; the joint
     refinement trains the per-record starts with the rate and the gains."""

@@ -138,6 +138,7 @@ def test_fit_recovers_a_known_slow_mode():
     assert float(th.k1) == pytest.approx(0.3, rel=0.02)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_a_slow_mode_added_to_a_one_mode_fit_nests_it():
     # the check's fits start from each class's one-mode fit (`slow_warm_start`): the search with the slow mode cannot
     # end above the one-mode fit on its own samples, and on a record with a slow mode it finds it
@@ -158,6 +159,7 @@ def test_a_slow_mode_added_to_a_one_mode_fit_nests_it():
     assert (float(th.slow_k1), float(th.slow_ratio), float(th.k1)) == pytest.approx((0.01, 0.5, 0.3), rel=0.05)
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_the_search_keeps_the_slow_mode_slower_than_the_wire():
     # a record whose second lag is faster than the wire (a series lag, not a slower mass): the search stays where the
     # mode is slower than the wire, so it is never reported as a slow thermal mode

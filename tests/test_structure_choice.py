@@ -54,6 +54,7 @@ def test_auto_candidates_follow_the_input(tmp_path):
     assert auto_candidates(rec, None, True)[0] == auto_candidates(rec, SMALL)[0]  # a direct input: no sparse companion
 
 
+@pytest.mark.slow  # suite time (session 70: 15-260 s on 2 cores)
 def test_model_auto_keeps_the_class_with_the_lower_validation_rmse(tmp_path, capsys):
     # a continuous Preisach density (not the toolkit's relay grid) driven by triangles of random amplitude and centre
     rec, _ = _record(tmp_path, 2, "preisach", "triangles", 1000)

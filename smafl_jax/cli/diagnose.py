@@ -95,10 +95,10 @@ def add_parser(sub):
     p.add_argument(
         "--split",
         choices=("time", "interleaved", "auto"),
-        default="time",
-        help="held-out samples of a record without a branch column: 'time' (default: the last 30 %%), 'interleaved' "
-        "(every third of ten blocks but the first; the fold test interleaved too) or 'auto' (the time block unless the "
-        "first 70 %% covers less than 90 %% of its input levels and directions, then interleaved)",
+        default="auto",
+        help="held-out samples of a record without a branch column: 'auto' (default: the last 30 %% unless the first "
+        "70 %% covers less than 90 %% of its input levels and directions, then interleaved), 'time' (the last 30 %%) "
+        "or 'interleaved' (every third of ten blocks but the first; the fold test interleaved too)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=run)

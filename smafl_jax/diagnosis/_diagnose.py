@@ -287,9 +287,11 @@ def make_split(record, holdout_fraction=HOLDOUT_FRACTION, holdout_residue=2, kin
 
     Why ``"auto"`` exists (issue 13, session 69): on the blind records of seeds 10-14 whose time block held out input
     the first 70 % had not visited (coverage < 60 %: triangles, ramps, staircases), the held-out gains measured
-    extrapolation; the truth was named on 4 of 10 there against 20 of 30 elsewhere.  Why it is not the default: not yet
-    measured on enough records (docs/diagnosis.md, "Interleaved split"); the nulls of an interleaved split reach larger
-    gains (a slow AR wander in the residual is interpolated between training blocks), so the gates get stricter there.
+    extrapolation; the truth was named on 4 of 10 there against 20 of 30 elsewhere.  `diagnose` uses it by default
+    since session 70, measured on every blind record of seeds 10-14 it moves and on clean records (docs/diagnosis.md,
+    "Interleaved split"); this function keeps ``"time"`` as its own default.  The nulls of an interleaved split reach
+    larger gains (a slow AR wander in the residual is interpolated between training blocks): the gates are stricter
+    there on slow effects.
     """
     from ..data import split as _split
 
@@ -1502,7 +1504,7 @@ def diagnose(
     unexplained=True,
     naming="whole",
     reference=True,
-    split="time",
+    split="auto",
 ) -> Diagnosis:
     """Full diagnosis of one record; returns a `Diagnosis` (selected effects, models, split, diagnosis.json content).
 
@@ -1531,9 +1533,9 @@ def diagnose(
     same split (`smafl_jax.diagnosis._reference`); where it holds out at the noise floor (`BASE_AT_FLOOR`) the
     acceptance is withdrawn and the naming goes on as for a base at the floor (``report["base"]["reference_fit"]``).
 
-    ``split`` (records without a branch column): ``"time"`` (default) holds out the last 30 %, ``"interleaved"`` every
-    third of ten blocks (the fold test then interleaved too), ``"auto"`` the time block unless the first 70 % covers
-    less than 90 % of its input levels and directions, then interleaved (`make_split`).
+    ``split`` (records without a branch column): ``"auto"`` (default since session 70) the last 30 % unless the first
+    70 % covers less than 90 % of its input levels and directions, then every third of ten blocks (`make_split`);
+    ``"time"`` / ``"interleaved"`` force one (with ``"interleaved"`` the fold test is interleaved too).
 
     ``unexplained`` (after the selection, never changing it): ``report["unexplained"]`` says whether the held-out
     residual still has structure, names its strongest correlate and scores a generic, clearly labelled ridge
