@@ -34,7 +34,7 @@ def _label(sel):
     return "+".join(sel) if sel else "none"
 
 
-def run_one(name, seed, folder, n_null, fpr, split="time"):
+def run_one(name, seed, folder, n_null, fpr, split="auto"):
     import smafl_jax as sj
     from smafl_jax.diagnosis import diagnose
 
@@ -164,7 +164,12 @@ def main(argv=None) -> int:
     ap.add_argument("--fpr", type=float, default=0.01)
     ap.add_argument("--truths", nargs="*", default=list(ie.TRUTHS), help=f"any of {ie.ALL_TRUTHS}")
     ap.add_argument("--out", default=str(OUT))
-    ap.add_argument("--split", default="time", choices=("time", "interleaved", "auto"), help="diagnose's split rule")
+    ap.add_argument(
+        "--split",
+        default="auto",
+        choices=("time", "interleaved", "auto"),
+        help="diagnose's split rule (default auto, as diagnose's own since session 70)",
+    )
     ap.add_argument("--fpr-check", type=int, default=0, help="only measure the false-positive rate on N clean records")
     a = ap.parse_args(argv)
     from smafl_jax import atomic_write_json, atomic_write_text, to_jsonable
