@@ -87,6 +87,7 @@ def test_a_fit_does_not_see_interpolated_outputs(tmp_path):
     assert np.sqrt(np.mean((_corrupt(rec).y - y_a) ** 2)) > 10 * doc_a["metrics"]["train"]["rmse"]
 
 
+@pytest.mark.slow  # suite time (session 71: 17 s under load); a single fit ignoring interpolated outputs stays in the default suite
 def test_joint_fit_and_leave_one_record_out_ignore_interpolated_outputs(tmp_path):
     recs = [sj.load_record(_bursty_csv(tmp_path / f"b{i}.csv", 10 + i)[0], resample=0.1) for i in range(2)]
     _, doc_a, _ = sj.fit_records(recs, **FAST)

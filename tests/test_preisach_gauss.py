@@ -90,6 +90,7 @@ def test_shape_gradient_matches_finite_differences(rng):
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-7)
 
 
+@pytest.mark.slow  # suite time (session 71: 15 s under load); the shape gradient against finite differences stays in the default suite
 def test_recovers_shape_from_a_record_of_its_own_class(rng):
     u = np.concatenate([_input(rng, 200), _input(rng, 200)[::-1]])
     truth = _model(n=12)

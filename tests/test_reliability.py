@@ -355,6 +355,7 @@ def _default_sigint():
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
+@pytest.mark.slow  # suite time (session 71: 17 s under load); Ctrl-C with a lost interrupt and SIGTERM stay in the default suite
 def test_ctrl_c_exits_130_without_traceback_or_leftovers(tmp_path):
     out = tmp_path / "sweep_out"
     cmd = [sys.executable, "-m", "smafl_jax", "sweep", "--model", str(TRUTH), "--duration", "100"]

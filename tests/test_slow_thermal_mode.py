@@ -124,6 +124,7 @@ def test_sampler_priors_cover_the_slow_mode(stand_in_record):
     assert all(priors[n].dist == "lognormal" for n in names)  # not flat: a rate and a ratio have a scale
 
 
+@pytest.mark.slow  # suite time (session 71: 31 s under load); the slow mode's numpy loop and gradients stay in the default suite
 def test_fit_recovers_a_known_slow_mode():
     # a record made with known rates; the fit starts from another slow mode and trains it with the rest
     truth = _cascade()

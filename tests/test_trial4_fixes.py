@@ -184,6 +184,7 @@ def test_simulate_says_the_at_bound_warning_once(truth, caplog):
     assert res.calibration["warnings"][0] == said[0]
 
 
+@pytest.mark.slow  # suite time (session 71: 14 s under load); calibration recovery stays in test_recalibrate.py
 def test_a_calibration_no_better_on_its_own_segment_is_said(truth):
     # the segment holds the input at 0 V: an input gain has nothing to act on there, so the fit cannot improve it
     u = np.r_[np.zeros(60), _drive(360)]
