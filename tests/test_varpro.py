@@ -55,6 +55,32 @@ def test_nelder_mead_search_finds_two_known_rates():
     assert res.profiled.loss <= res.start_losses[res.start] and res.best_seen.loss == pytest.approx(res.profiled.loss)
 
 
+def test_nelder_mead_from_the_runners_up_leaves_a_wrong_basin():
+    """Two basins: the best scored start lies in the shallow one (loss 0.3 at x = 0.5), the runner-up in the deep one
+    (0 at x = 2.6).  One simplex stays in the shallow basin; ``n_starts=2`` refines both and keeps the deep one."""
+
+    def project(x, start=None):
+        v = float(min((x[0] - 0.5) ** 2 + 0.3, 4.0 * (x[0] - 2.6) ** 2))
+        return varpro.Profiled(v, x.copy())
+
+    starts = [0.4, 2.0, 5.0]  # start losses 0.31, 1.44, 20.55
+    one = varpro.search(project, starts, x_of=lambda s: np.array([s]), refine=varpro.NelderMead(steps=(0.1,), xatol=1e-8))
+    assert one.start == 0 and one.x[0] == pytest.approx(0.5, abs=1e-6) and one.profiled.loss == pytest.approx(0.3)
+    nm2 = varpro.NelderMead(steps=(0.1,), xatol=1e-8, n_starts=2)
+    two = varpro.search(project, starts, x_of=lambda s: np.array([s]), refine=nm2)
+    assert two.start == 1 and two.x[0] == pytest.approx(2.6, abs=1e-6) and two.profiled.loss < 1e-12
+    assert two.n_evals > one.n_evals and two.best_seen.loss == pytest.approx(two.profiled.loss)
+    np.testing.assert_allclose(two.start_losses, [0.31, 1.44, 20.55])
+    # a non-finite start is not refined: the two finite ones are (from 5.0 the simplex also reaches the deep basin)
+    inf_start = varpro.search(project, starts, x_of=lambda s: np.array([s]), losses=[0.31, np.inf, 20.55], refine=nm2)
+    assert inf_start.start == 2 and inf_start.x[0] == pytest.approx(2.6, abs=1e-6)
+    nm3 = varpro.NelderMead(steps=(0.1,), xatol=1e-8, n_starts=3)
+    only_one = varpro.search(project, starts, x_of=lambda s: np.array([s]), losses=[0.31, np.inf, np.inf], refine=nm3)
+    assert only_one.start == 0 and only_one.x[0] == pytest.approx(0.5, abs=1e-6)
+    with pytest.raises(ValueError, match="n_starts"):
+        varpro.NelderMead(steps=(0.1,), n_starts=0)
+
+
 def test_grid_edge_is_not_refined_and_no_finite_start_raises():
     t, y = _exp_problem([0.7], [1.5])
     project = _exp_projection(t, y, 1)
@@ -181,10 +207,11 @@ def test_refine_thermal_start_equals_a_plain_nelder_mead(datasets_dir):
 
 
 def test_fit_extended_equals_a_plain_grid_and_nelder_mead(datasets_dir):
-    """Effect grid x k1 grid scored by `profile_gains`, the first best start, Nelder-Mead with the diagnosis' simplex,
-    caps, tolerances and cache, then the gains at the final point."""
+    """Effect grid x k1 grid scored by `profile_gains`, Nelder-Mead with the diagnosis' simplex, caps, tolerances and
+    cache from each of the `REFINED_STARTS` best starts, the lowest final loss, then the gains at its point."""
     from smafl_jax.diagnosis import fit_extended, make_split, profile_gains
     from smafl_jax.diagnosis._diagnose import (  # private: white-box test of the varpro parameter layout
+        REFINED_STARTS,
         _context,
         _get_phi,
         _phi_layout,
@@ -207,23 +234,28 @@ def test_fit_extended_equals_a_plain_grid_and_nelder_mead(datasets_dir):
         for k in k1s
     ]
     scores = [profile_gains(m, split.train)[1] for m in starts]
-    best = starts[int(np.argmin(scores))]
-    lay = _phi_layout(best, ctx)
-    cache = {}
+    runs, n_evals = [], 0
+    for i in np.argsort(scores, kind="stable")[:REFINED_STARTS]:
+        start = starts[int(i)]
+        lay = _phi_layout(start, ctx)
+        cache = {}
 
-    def objective(phi):
-        key = tuple(np.round(phi, 12))
-        if key not in cache:
-            sse = profile_gains(_set_phi(best, lay, phi), split.train)[1]
-            cache[key] = sse if np.isfinite(sse) else 1e300
-        return cache[key]
+        def objective(phi, start=start, cache=cache):
+            key = tuple(np.round(phi, 12))
+            if key not in cache:
+                sse = profile_gains(_set_phi(start, lay, phi), split.train)[1]
+                cache[key] = sse if np.isfinite(sse) else 1e300
+            return cache[key]
 
-    phi0 = _get_phi(best, lay)
-    simplex = [phi0] + [phi0 + np.eye(len(lay))[i] * lay[i][3] for i in range(len(lay))]
-    res = minimize(objective, phi0, method="Nelder-Mead",
-                   options={"initial_simplex": np.array(simplex), "maxiter": 40, "xatol": 1e-4, "fatol": 1e-10})  # fmt: skip
-    ref, sse = profile_gains(_set_phi(best, lay, res.x), split.train)
-    assert info["n_starts"] == len(starts) and info["n_evaluations"] == len(starts) + len(cache)
+        phi0 = _get_phi(start, lay)
+        simplex = [phi0] + [phi0 + np.eye(len(lay))[i] * lay[i][3] for i in range(len(lay))]
+        res = minimize(objective, phi0, method="Nelder-Mead",
+                       options={"initial_simplex": np.array(simplex), "maxiter": 40, "xatol": 1e-4, "fatol": 1e-10})  # fmt: skip
+        runs.append((res.fun, res, start))
+        n_evals += len(cache)
+    _, res, start = min(runs, key=lambda r: r[0])  # the first of equal losses
+    ref, sse = profile_gains(_set_phi(start, lay, res.x), split.train)
+    assert info["n_starts"] == len(starts) and info["n_evaluations"] == len(starts) + n_evals
     assert info["converged"] == bool(res.success) and info["nonlinear_parameters"] == 2
     assert info["train_sse"] == pytest.approx(sse, rel=1e-9)
     np.testing.assert_allclose(_get_phi(model, lay), res.x, rtol=1e-9, atol=1e-12)

@@ -169,7 +169,10 @@ class NelderMead:
     along each coordinate; ``maxiter`` / ``maxfev`` / ``xatol`` / ``fatol`` as scipy's options (None: scipy's
     default).  ``cache_decimals``: memoise the loss on ``x`` rounded to that many decimals (the simplex revisits
     points); ``bad``: the value a non-finite loss is replaced with.  Its final point is always taken: the start is
-    a vertex of the simplex, so it is never worse as the search saw it."""
+    a vertex of the simplex, so it is never worse as the search saw it.  ``n_starts``: the simplex runs from each of
+    the ``n_starts`` best scored starts (ties in start order) and the lowest final loss is kept (the first of equal
+    ones): a grid whose best start lies in the wrong basin (an effect's sign, a time constant at its bound) is refined
+    from its runners-up too."""
 
     steps: Sequence[float]
     xatol: float = 1e-4
@@ -178,6 +181,11 @@ class NelderMead:
     maxfev: int | None = None
     cache_decimals: int | None = None
     bad: float = np.inf
+    n_starts: int = 1
+
+    def __post_init__(self):
+        if int(self.n_starts) < 1:
+            raise ValueError(f"n_starts must be >= 1, got {self.n_starts!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -268,29 +276,39 @@ def search(
     elif isinstance(refine, NelderMead) and x.size > 0:
         from scipy.optimize import minimize
 
-        cache = {}
-
-        def objective(z):
-            if refine.cache_decimals is None:
-                v = evaluate(z)
-                return v if np.isfinite(v) else refine.bad
-            key = tuple(np.round(z, refine.cache_decimals))
-            if key not in cache:
-                v = evaluate(z)
-                cache[key] = v if np.isfinite(v) else refine.bad
-            return cache[key]
-
         steps = np.broadcast_to(np.asarray(refine.steps, dtype=np.float64), x.shape)
-        simplex = [x] + [x + np.eye(x.size)[i] * steps[i] for i in range(x.size)]
-        options = {"initial_simplex": np.array(simplex), "xatol": refine.xatol, "fatol": refine.fatol}
+        options = {"xatol": refine.xatol, "fatol": refine.fatol}
         if refine.maxiter is not None:
             options["maxiter"] = int(refine.maxiter)
         if refine.maxfev is not None:
             options["maxfev"] = int(refine.maxfev)
-        res = minimize(objective, x, method="Nelder-Mead", options=options)
-        x, refined = np.asarray(res.x, dtype=np.float64), True
-        n_evals = len(cache) if refine.cache_decimals is not None else int(res.nfev)
-        converged = bool(res.success)
+        order = [best]
+        if start_losses is not None and refine.n_starts > 1:
+            ranked = np.argsort(np.where(np.isnan(start_losses), np.inf, start_losses), kind="stable")
+            order = [int(i) for i in ranked[: int(refine.n_starts)] if np.isfinite(start_losses[i])]
+        chosen = None  # (final loss, x, start index, converged)
+        for i in order:
+            start = starts[i]
+            x0 = np.asarray(x_of(start), dtype=np.float64)
+            cache = {}
+
+            def objective(z, cache=cache):
+                if refine.cache_decimals is None:
+                    v = evaluate(z)
+                    return v if np.isfinite(v) else refine.bad
+                key = tuple(np.round(z, refine.cache_decimals))
+                if key not in cache:
+                    v = evaluate(z)
+                    cache[key] = v if np.isfinite(v) else refine.bad
+                return cache[key]
+
+            simplex = [x0] + [x0 + np.eye(x0.size)[k] * steps[k] for k in range(x0.size)]
+            res = minimize(objective, x0, method="Nelder-Mead", options={**options, "initial_simplex": np.array(simplex)})
+            n_evals += len(cache) if refine.cache_decimals is not None else int(res.nfev)
+            if chosen is None or res.fun < chosen[0]:
+                chosen = (res.fun, np.asarray(res.x, dtype=np.float64), i, bool(res.success))
+        _, x, best, converged = chosen
+        start, refined = starts[best], True
     elif refine is not None and not isinstance(refine, NelderMead):
         raise ValueError(f"refine must be Bounded, NelderMead or None, got {refine!r}")
     profiled = project(x, start) if reproject else None
