@@ -134,6 +134,7 @@ def test_heldout_record_starts_from_its_own_first_window(rng):
     np.testing.assert_allclose(y2, h.simulate(u))
 
 
+@pytest.mark.slow  # suite time (session 71: 12 s under load); the held-out record's own first window is scored in the default suite
 def test_heldout_record_shorter_than_its_window_is_scored_whole(rng):
     from smafl_jax.identify._multi_record import _heldout  # private: the held-out rule itself is under test
 

@@ -61,6 +61,7 @@ def test_projected_residual_jacobian_matches_finite_differences(rng):
         np.testing.assert_allclose(J[:, i], fd, rtol=1e-4, atol=1e-6 * np.max(np.abs(fd)) + 1e-9)
 
 
+@pytest.mark.slow  # suite time (session 71: 25 s under load); the projected residual and its Jacobian stay in the default suite
 def test_varpro_reaches_the_noise_where_the_start_is_off(rng):
     """From the grid thresholds, the projected refinement of thresholds and tilts reaches the noise floor of data made
     by an EUPI whose thresholds are off that grid, and ends within 1 % of the joint LM refinement's loss (both reach the noise on this small problem)."""
