@@ -451,7 +451,7 @@ def _voltage_record(rng, n=240):
 
 # suite time: of the thermal classes only cascade-phase (21 s on 2 cores; it carries the K2 note) stays in the default
 # suite (cascade 18 s, cascade-preisach 20 s; session 70: cascade-preisach-gauss 55 s, phase 34 s; session 71: preisach
-# 12 s under load, eupi and gaussian-preisach stay)
+# 12 s under load; eupi, joule and preisach-gauss stay)
 _SLOW_REPORTS = ("cascade", "cascade-preisach", "cascade-preisach-gauss", "phase", "preisach")
 
 
