@@ -8,6 +8,7 @@ import pytest
 from scipy.optimize import minimize, minimize_scalar
 
 import smafl_jax as sj
+from smafl_jax.effects import Linear, Log, LogBox, Tanh
 from smafl_jax.identify import linear, varpro
 
 # -- the engine on small problems with a known minimum ----------------------------------------
@@ -79,6 +80,55 @@ def test_nelder_mead_from_the_runners_up_leaves_a_wrong_basin():
     assert only_one.start == 0 and only_one.x[0] == pytest.approx(0.5, abs=1e-6)
     with pytest.raises(ValueError, match="n_starts"):
         varpro.NelderMead(steps=(0.1,), n_starts=0)
+
+
+def test_runners_up_refined_only_where_the_best_start_asks_for_it():
+    """``retry_if`` sees the best start's final point: False there keeps its one simplex run, True refines the
+    runners-up as ``n_starts`` alone does."""
+
+    def project(x, start=None):
+        v = float(min((x[0] - 0.5) ** 2 + 0.3, 4.0 * (x[0] - 2.6) ** 2))
+        return varpro.Profiled(v, x.copy())
+
+    starts, seen = [0.4, 2.0, 5.0], []
+
+    def ask(answer):
+        def retry_if(x):
+            seen.append(float(x[0]))
+            return answer
+
+        return retry_if
+
+    kw = dict(x_of=lambda s: np.array([s]))
+    stay = varpro.search(
+        project, starts, refine=varpro.NelderMead(steps=(0.1,), xatol=1e-8, n_starts=2, retry_if=ask(False)), **kw
+    )
+    assert stay.start == 0 and stay.n_runs == 1 and stay.x[0] == pytest.approx(0.5, abs=1e-6)
+    assert seen == [pytest.approx(0.5, abs=1e-6)]  # asked once, at the best start's final point
+    move = varpro.search(
+        project, starts, refine=varpro.NelderMead(steps=(0.1,), xatol=1e-8, n_starts=2, retry_if=ask(True)), **kw
+    )
+    assert move.start == 1 and move.n_runs == 2 and move.x[0] == pytest.approx(2.6, abs=1e-6)
+    assert len(seen) == 2  # not asked again after the second run
+    plain = varpro.search(project, starts, refine=varpro.NelderMead(steps=(0.1,), xatol=1e-8, n_starts=2), **kw)
+    assert plain.n_runs == 2 and plain.x[0] == move.x[0] and plain.n_evals == move.n_evals
+
+
+@pytest.mark.parametrize(
+    "transform, inside, outside",
+    [
+        # |v| <= 2: the outer 1 % of [-2, 2] is |v| > 1.96
+        (Tanh(2.0), [0.0, 1.9, -1.95], [1.97, -1.99]),
+        # log v in [log 1, log 1000]: 1 % of that range is a factor 1000 ** 0.01 = 1.072 from either end
+        (LogBox(1.0, 1000.0), [1.08, 30.0, 930.0], [1.06, 940.0, 999.0]),
+    ],
+)
+def test_at_bound_is_the_outer_percent_of_a_bounded_range(transform, inside, outside):
+    for v in inside:
+        assert not transform.at_bound(transform.to_phi(v)), v
+    for v in outside:
+        assert transform.at_bound(transform.to_phi(v)), v
+    assert not Log().at_bound(40.0) and not Linear().at_bound(-1e9)  # unbounded: never
 
 
 def test_grid_edge_is_not_refined_and_no_finite_start_raises():
@@ -206,9 +256,23 @@ def test_refine_thermal_start_equals_a_plain_nelder_mead(datasets_dir):
     assert loss < objective(x0)
 
 
+def _at_a_bound(phi, lay):
+    """Reference of the runners-up rule: a LogBox / Tanh parameter in the outer 1 % of its range (values, not phi)."""
+    for (_, _, tr, _), p in zip(lay, phi):
+        v = tr.from_phi(p)
+        if isinstance(tr, LogBox):
+            f = (np.log(v) - np.log(tr.lo)) / (np.log(tr.hi) - np.log(tr.lo))
+            if min(f, 1.0 - f) < 0.01:
+                return True
+        elif isinstance(tr, Tanh) and abs(v) > 0.98 * tr.bound:
+            return True
+    return False
+
+
 def test_fit_extended_equals_a_plain_grid_and_nelder_mead(datasets_dir):
     """Effect grid x k1 grid scored by `profile_gains`, Nelder-Mead with the diagnosis' simplex, caps, tolerances and
-    cache from each of the `REFINED_STARTS` best starts, the lowest final loss, then the gains at its point."""
+    cache from the best start (and the next `REFINED_STARTS` - 1 where it ends at a bound), the lowest final loss,
+    then the gains at its point."""
     from smafl_jax.diagnosis import fit_extended, make_split, profile_gains
     from smafl_jax.diagnosis._diagnose import (  # private: white-box test of the varpro parameter layout
         REFINED_STARTS,
@@ -234,10 +298,11 @@ def test_fit_extended_equals_a_plain_grid_and_nelder_mead(datasets_dir):
         for k in k1s
     ]
     scores = [profile_gains(m, split.train)[1] for m in starts]
-    runs, n_evals = [], 0
+    runs, n_evals, lay = [], 0, _phi_layout(starts[0], ctx)  # one layout: every start has the same structure
     for i in np.argsort(scores, kind="stable")[:REFINED_STARTS]:
+        if runs and not _at_a_bound(runs[0][1].x, lay):
+            break  # runners-up only where the best start's simplex ends at a bound
         start = starts[int(i)]
-        lay = _phi_layout(start, ctx)
         cache = {}
 
         def objective(phi, start=start, cache=cache):
@@ -256,6 +321,7 @@ def test_fit_extended_equals_a_plain_grid_and_nelder_mead(datasets_dir):
     _, res, start = min(runs, key=lambda r: r[0])  # the first of equal losses
     ref, sse = profile_gains(_set_phi(start, lay, res.x), split.train)
     assert info["n_starts"] == len(starts) and info["n_evaluations"] == len(starts) + n_evals
+    assert info["refined_runs"] == len(runs)
     assert info["converged"] == bool(res.success) and info["nonlinear_parameters"] == 2
     assert info["train_sse"] == pytest.approx(sse, rel=1e-9)
     np.testing.assert_allclose(_get_phi(model, lay), res.x, rtol=1e-9, atol=1e-12)

@@ -560,11 +560,13 @@ def _context(split):
 
 
 #: Nelder-Mead runs of `fit_extended`: from this many of the best grid starts, the lowest final loss kept
-#: (`varpro.NelderMead.n_starts`).  Measured with 3 (session 71, docs/diagnosis.md "Session 71"): creep s6011 of the
-#: independent plant none -> creep (from its third best start the simplex reaches the truth's sign and a lower training
-#: loss), but clean s45 none -> creep + asymmetric_cooling (a false positive) and a record's diagnosis about 1.5x
-#: slower; clean s39 and s44 none either way.  Kept at 1 (the earlier numbers) until a rule gains without that cost.
-REFINED_STARTS = 1
+#: (`varpro.NelderMead.n_starts`), the runners-up only where the best start's simplex ends with a parameter at an end of
+#: its range (`Transform.at_bound`: no interior minimum found there).  Refining the runners-up always (session 71,
+#: docs/diagnosis.md "Session 71") gained creep s6011 of the independent plant (its best start ends at the tau bound;
+#: from the third the simplex reaches the truth's sign and a lower training loss) but made clean s45 a false positive
+#: and a diagnosis about 1.5x slower.  With the bound rule (session 72, "Session 72" there): creep s6011 named, the 10
+#: clean records none, the other 7 records rerun unchanged.
+REFINED_STARTS = 3
 
 
 def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=False):
@@ -573,7 +575,8 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     Variable projection: the EUPI gains are profiled out by bounded least
     squares (`profile_gains`), and the few nonlinear parameters (thermal rate
     ``k1`` and the effects' parameters, log-transformed where positive) are
-    searched by Nelder-Mead from the best (`REFINED_STARTS`) of a small grid of starts.  Effects
+    searched by Nelder-Mead from the best of a small grid of starts (and its runners-up where that ends at a bound,
+    `REFINED_STARTS`).  Effects
     already in ``base`` (an `ExtendedModel`) start from their fitted values.
     Returns ``(model, info)``.
     """
@@ -607,6 +610,7 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
         cache_decimals=12,
         bad=1e300,
         n_starts=REFINED_STARTS,
+        retry_if=lambda phi: any(tr.at_bound(p) for (_, _, tr, _), p in zip(lay, phi)),
     )
     res = varpro.search(
         project,
@@ -622,12 +626,16 @@ def fit_extended(base, effects, split, *, k1_grid=None, max_iter=None, verbose=F
     info = {
         "n_starts": len(starts),
         "n_evaluations": n_eval,
+        "refined_runs": res.n_runs,
         "nonlinear_parameters": len(lay),
         "converged": converged,
         "train_sse": sse,
         "seconds": time.time() - t0,
     }
-    _log(f"  fit {'+'.join(effects) or 'base'}: {len(starts)} starts, {n_eval} evaluations, {info['seconds']:.1f} s", verbose)
+    runs = f", {res.n_runs} simplex runs (best start at a bound)" if res.n_runs > 1 else ""
+    _log(
+        f"  fit {'+'.join(effects) or 'base'}: {len(starts)} starts, {n_eval} evaluations{runs}, {info['seconds']:.1f} s", verbose
+    )
     return model, info
 
 

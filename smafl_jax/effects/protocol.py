@@ -82,6 +82,15 @@ class Transform(abc.ABC):
     @abc.abstractmethod
     def from_phi(self, p: float) -> float: ...
 
+    def at_bound(self, p: float) -> bool:
+        """Whether ``phi`` puts the parameter at an end of its range (within `BOUND_FRACTION` of it), where the map
+        is flat and a simplex stalls: False for an unbounded transform."""
+        return False
+
+
+#: Fraction of a bounded transform's range counted as "at its bound" (`Transform.at_bound`).
+BOUND_FRACTION = 0.01
+
 
 @dataclasses.dataclass(frozen=True)
 class Log(Transform):
@@ -117,6 +126,9 @@ class Tanh(Transform):
     def from_phi(self, p):
         return float(self.bound * np.tanh(p))
 
+    def at_bound(self, p):
+        return bool(abs(np.tanh(p)) > 1.0 - 2.0 * BOUND_FRACTION)  # |v| in the outer 1 % of [-bound, bound]
+
 
 @dataclasses.dataclass(frozen=True)
 class LogBox(Transform):
@@ -136,6 +148,10 @@ class LogBox(Transform):
     def from_phi(self, p):
         llo, lhi = self._logs()
         return float(np.exp(llo + (lhi - llo) / (1.0 + np.exp(-np.clip(p, -50, 50)))))
+
+    def at_bound(self, p):
+        f = 1.0 / (1.0 + np.exp(-np.clip(p, -50, 50)))  # position of log v in [log lo, log hi]
+        return bool(min(f, 1.0 - f) < BOUND_FRACTION)
 
 
 class Nonlinear(NamedTuple):

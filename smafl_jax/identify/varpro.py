@@ -172,7 +172,9 @@ class NelderMead:
     a vertex of the simplex, so it is never worse as the search saw it.  ``n_starts``: the simplex runs from each of
     the ``n_starts`` best scored starts (ties in start order) and the lowest final loss is kept (the first of equal
     ones): a grid whose best start lies in the wrong basin (an effect's sign, a time constant at its bound) is refined
-    from its runners-up too."""
+    from its runners-up too.  ``retry_if(x)``: with it, the runners-up are refined only when the best start's final
+    point satisfies it (e.g. a parameter at its bound: a simplex that ends there found no interior minimum); None:
+    always."""
 
     steps: Sequence[float]
     xatol: float = 1e-4
@@ -182,6 +184,7 @@ class NelderMead:
     cache_decimals: int | None = None
     bad: float = np.inf
     n_starts: int = 1
+    retry_if: Callable[[np.ndarray], bool] | None = None
 
     def __post_init__(self):
         if int(self.n_starts) < 1:
@@ -197,7 +200,8 @@ class Search:
     (the first of equal ones) with its model, ``Profiled(inf)`` before any; ``start``: index of the best start;
     ``start_losses``: the starts' losses (None when a single start was not scored); ``n_evals``: the refinement's
     projections (distinct points when cached); ``converged``: scipy's success flag (True without refinement);
-    ``refined``: whether ``x`` came from the refinement.
+    ``refined``: whether ``x`` came from the refinement; ``n_runs``: simplex runs (more than one where the runners-up
+    were refined, `NelderMead.n_starts`).
     """
 
     x: np.ndarray
@@ -208,6 +212,7 @@ class Search:
     n_evals: int
     converged: bool
     refined: bool
+    n_runs: int = 0
 
 
 def search(
@@ -257,7 +262,7 @@ def search(
             seen[0] = p
         return p.loss
 
-    n_evals, converged, refined = 0, True, False
+    n_evals, converged, refined, n_runs = 0, True, False, 0
     if isinstance(refine, Bounded):
         if start_losses is None or x.size != 1:
             raise ValueError("Bounded refines one parameter from a scored grid of starts")
@@ -287,7 +292,9 @@ def search(
             ranked = np.argsort(np.where(np.isnan(start_losses), np.inf, start_losses), kind="stable")
             order = [int(i) for i in ranked[: int(refine.n_starts)] if np.isfinite(start_losses[i])]
         chosen = None  # (final loss, x, start index, converged)
-        for i in order:
+        for run, i in enumerate(order):
+            if run == 1 and refine.retry_if is not None and not refine.retry_if(chosen[1]):
+                break  # the best start's simplex ended inside the search region: the runners-up are not needed
             start = starts[i]
             x0 = np.asarray(x_of(start), dtype=np.float64)
             cache = {}
@@ -305,6 +312,7 @@ def search(
             simplex = [x0] + [x0 + np.eye(x0.size)[k] * steps[k] for k in range(x0.size)]
             res = minimize(objective, x0, method="Nelder-Mead", options={**options, "initial_simplex": np.array(simplex)})
             n_evals += len(cache) if refine.cache_decimals is not None else int(res.nfev)
+            n_runs += 1
             if chosen is None or res.fun < chosen[0]:
                 chosen = (res.fun, np.asarray(res.x, dtype=np.float64), i, bool(res.success))
         _, x, best, converged = chosen
@@ -312,4 +320,4 @@ def search(
     elif refine is not None and not isinstance(refine, NelderMead):
         raise ValueError(f"refine must be Bounded, NelderMead or None, got {refine!r}")
     profiled = project(x, start) if reproject else None
-    return Search(x, profiled, seen[0], best, start_losses, n_evals, converged, refined)
+    return Search(x, profiled, seen[0], best, start_losses, n_evals, converged, refined, n_runs)
