@@ -565,7 +565,7 @@ def _context(split):
 #: docs/diagnosis.md "Session 71") gained creep s6011 of the independent plant (its best start ends at the tau bound;
 #: from the third the simplex reaches the truth's sign and a lower training loss) but made clean s45 a false positive
 #: and a diagnosis about 1.5x slower.  With the bound rule (session 72, "Session 72" there): creep s6011 named, the 10
-#: clean records none, the other 7 records rerun unchanged.
+#: clean records none, the other 9 records rerun unchanged.
 REFINED_STARTS = 3
 
 
