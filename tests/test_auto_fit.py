@@ -17,7 +17,7 @@ from reference import eupi_loop, play_loop, random_reversals, thermal_loop
 
 import smafl_jax as sj
 from smafl_jax.control import plant_init, plant_step
-from smafl_jax.identify import auto_structure, screen_start
+from smafl_jax.identify import START_FRACTIONS, auto_structure, screen_start
 from smafl_jax.identify._fit import _bvls  # private: white-box test of the fit's bounded LS options
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -145,6 +145,27 @@ def test_screening_keeps_the_right_sign_of_a_record_that_starts_warm():
     assert model.hysteresis.orientation == -1
     warmest = max(f for f in {row["thermal_start"] for row in table} if not isinstance(f, str))
     assert {row["orientation"] for row in table if row["thermal_start"] == warmest} == {1, -1}
+
+
+def test_screening_tries_every_start_for_both_signs_of_a_record_that_starts_half_warm():
+    """An independent plant started half warm (about half the input maximum, between the screening's start
+    fractions): on the steady, cold and warmest starts the right sign ("rises") scored about 14x the wrong one and
+    was dropped before its middle starts were tried; the diagnosis then fitted a falling output that held out at
+    213x the noise (experiments/indep_effects.py nonlinear_cooling seed 4014, session 73).  Every start is screened
+    for both signs now, and the right sign wins by its training loss."""
+    r = indep_plant.make_record(4014, effect="nonlinear_cooling", variant="convective", drive="random_levels",
+                                rate_hz=7.263988852386733, minutes=6.250009591504659, start="warm", noise="fixed")  # fmt: skip
+    assert r["truth"]["sensor"]["orientation"] == "displacement"
+    start = sj.Cascade.from_range(float(np.max(r["u"])), n_sym=4, n_alpha=2, n_asym=2)
+    w = np.zeros(len(r["u"]))
+    w[: r["heldout_start"]] = 1.0
+    # the input the diagnosis' screening picks on this record, pinned (suite time)
+    model, table, _ = screen_start(start, [(r["u"], r["y"], r["dt"])], [w], k1_grid=8, sees="voltage", memory="rule")
+    assert model.hysteresis.orientation == 1
+    fractions = {row["thermal_start"] for row in table if not isinstance(row["thermal_start"], str)}
+    assert len(fractions) == len(START_FRACTIONS)
+    for f in fractions | {"steady"}:
+        assert {row["orientation"] for row in table if row["thermal_start"] == f} == {1, -1}, f
 
 
 def test_screening_takes_the_memory_rule_that_fits_an_independent_virgin_plant():

@@ -427,6 +427,12 @@ def test_cli_no_effect_selects_none(truth, drives, tmp_path, capsys):
     assert noise["base_heldout_ratio"] == pytest.approx(doc["base"]["heldout_rmse"] / noise["sd"], rel=1e-12)
     assert f"{noise['base_heldout_ratio']:.3g}x -> " in capsys.readouterr().out
     assert "In units of the output noise SD" in (out / "report.md").read_text()
+    # what the base leaves above the noise (quadrature), and what "none" then means
+    left = noise["base_structure_left_sd"]
+    assert left == pytest.approx(np.sqrt(max(noise["base_train_ratio"] ** 2 - 1.0, 0.0)), rel=1e-12, abs=1e-12)
+    said = any("'none' means no effect this record can tell from the base" in w for w in doc["warnings"])
+    assert said == (left < 1.0)
+    assert "noise SD of structure on its training samples" in (out / "report.md").read_text()
     for f in ("extended_fit.json", "base_fit.json", "report.md", "residuals_before.png", "residuals_after.png"):
         assert (out / f).exists()
     ext = sj.load_model(out / "extended_fit.json")
@@ -1218,3 +1224,13 @@ def test_ranking_gains_are_measured_from_the_best_base_any_fit_found():
     rows = [{"name": "delay", "rmse": 0.5, "base_part_rmse": 1.0 - 1e-9}]
     by = {"lag 1": 1.0}
     assert rebase_ranking(rows, by, "lag 1") == ("lag 1", 1.0) and rows[0]["gain"] == 0.5 and list(by) == ["lag 1"]
+
+
+def test_structure_left_is_the_misfit_above_the_noise_in_quadrature():
+    """Training RMSE r noise SDs: independent noise adds in quadrature, so the base's own misfit is sqrt(r^2 - 1) SDs;
+    a fit below the noise estimate leaves none, and an unknown ratio gives None (no warning is built on it)."""
+    from smafl_jax.diagnosis._diagnose import structure_left_sd  # private: the figure behind a warning's threshold
+
+    assert structure_left_sd(np.hypot(1.0, 0.75)) == pytest.approx(0.75, rel=1e-12)
+    assert structure_left_sd(0.9) == 0.0
+    assert structure_left_sd(None) is None and structure_left_sd(float("nan")) is None

@@ -126,7 +126,13 @@ def _noise_lines(noise):
         "",
         f"In units of the output noise SD ({noise['sd']:.4g}, estimated from the data: {noise['method']}): base "
         f"{r('base_train_ratio')} train, {r('base_heldout_ratio')} held out; extended {r('extended_train_ratio')} train, "
-        f"{r('extended_heldout_ratio')} held out.",
+        f"{r('extended_heldout_ratio')} held out."
+        + (
+            f" The base leaves {noise['base_structure_left_sd']:.2g} noise SD of structure on its training samples "
+            "(RMS of the misfit above the noise)."
+            if noise.get("base_structure_left_sd") is not None
+            else ""
+        ),
     ]
 
 
