@@ -912,8 +912,8 @@ BASE_AT_FLOOR = 1.2
 #: Structure the base leaves on its training samples, in output-noise SDs (`structure_left_sd`), below which a
 #: diagnosis that names nothing says so: what an effect changes there, the base's own freedom (thermal rate, start
 #: state, polynomial, operator gains) has mimicked, so "none" means none detectable, not none present.  Measured
-#: blind (session 73, independent plant, seeds 10-14): the truth was named on 22 of 26 effect records where the base
-#: left >= 1 SD and on 5 of 14 below, most of them with the truth's whole-record gain under 5 %.
+#: blind (session 73, independent plant, seeds 10-14): the truth was named on 22 of 25 effect records where the base
+#: left >= 1 SD and on 5 of 15 below, most of them with the truth's whole-record gain under 5 %.
 DETECTABLE_STRUCTURE_SD = 1.0
 
 
